@@ -1,0 +1,208 @@
+//! Axis-aligned bounding boxes and the slab ray/box test shared by all box-based tracers.
+
+use glam::Vec3;
+use serde::Serialize;
+
+/// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`, so growing it by any point
+/// gives that point.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Aabb {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Largest corner.
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    /// The box containing nothing.
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// The box from two corners (no ordering check).
+    #[inline]
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    /// The smallest box around the points.
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
+        points.into_iter().fold(Self::EMPTY, |b, p| b.grow(p))
+    }
+
+    /// True when the box contains no point.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        !(self.min.x <= self.max.x && self.min.y <= self.max.y && self.min.z <= self.max.z)
+    }
+
+    /// This box grown to contain `p`.
+    #[inline]
+    pub fn grow(self, p: Vec3) -> Self {
+        Self {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    /// The smallest box containing both.
+    #[inline]
+    pub fn union(self, o: Aabb) -> Self {
+        Self {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    /// The overlap of both (possibly empty).
+    #[inline]
+    pub fn intersection(self, o: Aabb) -> Self {
+        Self {
+            min: self.min.max(o.min),
+            max: self.max.min(o.max),
+        }
+    }
+
+    /// `max - min` (negative components for the empty box).
+    #[inline]
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    /// The centre point.
+    #[inline]
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Index of the longest axis (0 = x, 1 = y, 2 = z); ties go to the lower axis.
+    #[inline]
+    pub fn longest_axis(&self) -> usize {
+        let e = self.extent();
+        if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// Surface area, 0 for the empty box (the SAH's measure).
+    #[inline]
+    pub fn surface_area(&self) -> f32 {
+        if self.is_empty() {
+            return 0.0;
+        }
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    /// True when `p` is inside or on the boundary.
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// True when `o` lies wholly inside this box.
+    #[inline]
+    pub fn contains_box(&self, o: &Aabb) -> bool {
+        o.min.cmpge(self.min).all() && o.max.cmple(self.max).all()
+    }
+
+    /// Slab test: the parametric interval `[t_enter, t_exit]` of the ray inside the box, clipped
+    /// to `[tmin, tmax]`, or `None` when it is empty.
+    ///
+    /// `inv_dir` is `1 / dir` per component (±inf for zero components, which the IEEE rules turn
+    /// into the right infinite slabs; a zero component with the origin exactly on a slab plane
+    /// gives `0 * inf = NaN`, which `min`/`max` below drop, keeping the ray: conservative).
+    /// The exit is widened by [`super::BOX_EXIT_SLACK`] so that no hit the triangle test accepts
+    /// is lost to rounding in this test.
+    #[inline(always)]
+    pub fn ray_interval(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<(f32, f32)> {
+        let t0 = (self.min - origin) * inv_dir;
+        let t1 = (self.max - origin) * inv_dir;
+        // f32::min/max return the non-NaN operand, so NaN slabs never shrink the interval.
+        let tn = t0.min(t1);
+        let tf = t0.max(t1);
+        let t_enter = tmin.max(tn.x).max(tn.y).max(tn.z);
+        let t_exit = tmax
+            .min(tf.x * super::BOX_EXIT_SLACK)
+            .min(tf.y * super::BOX_EXIT_SLACK)
+            .min(tf.z * super::BOX_EXIT_SLACK);
+        if t_enter <= t_exit {
+            Some((t_enter, t_exit))
+        } else {
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slab_test_inside_outside_and_parallel() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let inv = |d: Vec3| Vec3::ONE / d;
+        // From inside: enters at tmin.
+        let (te, tx) = b
+            .ray_interval(Vec3::splat(0.5), inv(Vec3::X), 0.0, f32::INFINITY)
+            .unwrap();
+        assert_eq!(te, 0.0);
+        assert!((tx - 0.5).abs() < 1e-6);
+        // Axis-parallel ray outside the slab misses.
+        assert!(b
+            .ray_interval(Vec3::new(-1.0, 2.0, 0.5), inv(Vec3::X), 0.0, f32::INFINITY)
+            .is_none());
+        // Axis-parallel ray exactly on a face plane is kept (conservative).
+        assert!(b
+            .ray_interval(Vec3::new(-1.0, 1.0, 0.5), inv(Vec3::X), 0.0, f32::INFINITY)
+            .is_some());
+        // Box behind the origin misses.
+        assert!(b
+            .ray_interval(Vec3::new(2.0, 0.5, 0.5), inv(Vec3::X), 0.0, f32::INFINITY)
+            .is_none());
+        // tmax clipping.
+        assert!(b
+            .ray_interval(Vec3::new(-2.0, 0.5, 0.5), inv(Vec3::X), 0.0, 1.5)
+            .is_none());
+        // Negative zero direction components behave like positive zero.
+        let d = Vec3::new(1.0, -0.0, 0.0);
+        assert!(b
+            .ray_interval(Vec3::new(-1.0, 0.5, 0.5), inv(d), 0.0, f32::INFINITY)
+            .is_some());
+    }
+
+    #[test]
+    fn flat_box_is_hit() {
+        let b = Aabb::new(Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 1.0));
+        let d = Vec3::new(0.3, 1.0, 0.2).normalize();
+        assert!(b
+            .ray_interval(Vec3::new(0.2, 0.0, 0.3), Vec3::ONE / d, 0.0, f32::INFINITY)
+            .is_some());
+    }
+
+    #[test]
+    fn empty_and_area() {
+        assert!(Aabb::EMPTY.is_empty());
+        assert_eq!(Aabb::EMPTY.surface_area(), 0.0);
+        let b = Aabb::from_points([Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0)]);
+        assert_eq!(b.surface_area(), 22.0);
+        assert_eq!(b.longest_axis(), 2);
+    }
+}

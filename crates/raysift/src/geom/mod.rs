@@ -1,0 +1,21 @@
+//! Shared geometry: vectors (glam), axis-aligned boxes, planes, spheres, cones, and **the one
+//! ray/triangle test** every tracer calls.
+//!
+//! Tracers never carry their own copy of a geometric test: correctness is proven by comparing every
+//! tracer with the brute-force one bit for bit, which only holds when they all evaluate the same
+//! function on the same data (see `triangle`).
+
+pub mod aabb;
+pub mod shapes;
+pub mod triangle;
+
+pub use aabb::Aabb;
+pub use glam::{Vec3, Vec3A};
+pub use shapes::{Cone, Plane, Sphere};
+pub use triangle::{intersect_triangle, TriHit};
+
+/// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the
+/// triangle test: a hit computed by [`intersect_triangle`] may lie a few ulps outside the exact box of
+/// its triangle, so box exits are pushed out by this relative factor (Ize 2013; pbrt's `gamma(3)`).
+pub const BOX_EXIT_SLACK: f32 =
+    1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);

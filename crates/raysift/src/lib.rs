@@ -1,0 +1,38 @@
+//! # raysift
+//!
+//! Batch ray/triangle intersection for scenes that change every frame. Several published
+//! techniques (divide-and-conquer ray tracing, bounding spheres with ray-planes, relevant-triangle
+//! shafts, cone tracing) and two baselines (brute force, SAH BVH) implement one [`Tracer`]
+//! contract, and are proven equal to the brute-force tracer.
+//!
+//! ```
+//! use raysift::{rays::Camera, scene::procedural, tracers, Tracer};
+//! use std::sync::Arc;
+//!
+//! let scene = Arc::new(procedural::icosphere(1000));
+//! let mut tracer = tracers::create("naive", &[]).unwrap();
+//! tracer.prepare(scene.clone()).unwrap();
+//! let camera = Camera::framing(&scene.bounds(), 45.0, 1.0);
+//! let rays = camera.rays(16, 16);
+//! let (hits, stats) = tracer.intersect_timed(&rays);
+//! assert!(hits.hit_count() > 80);
+//! assert_eq!(stats.rays, 256);
+//! ```
+//!
+//! Layout: see ARCHITECTURE.md at the repository root.
+
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod geom;
+pub mod output;
+pub mod rays;
+pub mod render;
+pub mod scene;
+pub mod tracer;
+pub mod tracers;
+
+pub use error::{Error, Result};
+pub use rays::{HitBatch, RayBatch};
+pub use scene::Scene;
+pub use tracer::{Stats, Tracer};

@@ -1,0 +1,350 @@
+//! The numpy file formats (README, "Formats"):
+//!
+//! - `rays.npy`: float32, shape `(N, 6)` `[ox, oy, oz, dx, dy, dz]` (then `tmin = 0`, `tmax = +inf`)
+//!   or `(N, 8)` `[..., tmin, tmax]`, C order, either byte order. Origins and directions must be
+//!   finite, directions non-zero, `tmin` not NaN.
+//! - `hits.npy`: a structured array of N records `t <f4` (+inf on miss), `prim <u4`
+//!   (4294967295 on miss), `u <f4`, `v <f4`.
+//! - occlusion: `uint8` array of N (1 = occluded).
+
+use super::{HitBatch, Ray, RayBatch};
+use crate::error::{Error, Result};
+use crate::output::write_atomic;
+use npyz::WriterBuilder;
+use std::path::Path;
+
+/// One record of `hits.npy`.
+#[derive(
+    npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq,
+)]
+pub struct HitRecord {
+    /// Hit distance.
+    pub t: f32,
+    /// Triangle id.
+    pub prim: u32,
+    /// Barycentric u.
+    pub u: f32,
+    /// Barycentric v.
+    pub v: f32,
+}
+
+fn open_npy(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>> {
+    let name = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| Error::io(&name, e))?;
+    npyz::NpyFile::new(std::io::BufReader::new(f))
+        .map_err(|e| Error::parse(&name, "header", format!("not a valid .npy file ({e})")))
+}
+
+fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
+    match dtype {
+        npyz::DType::Plain(ts) => {
+            let s = ts.to_string();
+            s.len() >= 3 && s[1..].starts_with(kind) && ts.size_field() == size
+        }
+        _ => false,
+    }
+}
+
+/// Reads and validates a rays file.
+pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let npy = open_npy(path)?;
+    let shape = npy.shape().to_vec();
+    if !is_plain(&npy.dtype(), 'f', 4) {
+        return Err(Error::parse(
+            &name,
+            "header",
+            format!("dtype is {}, expected float32 ('<f4')", npy.dtype().descr()),
+        ));
+    }
+    if shape.len() != 2 || !(shape[1] == 6 || shape[1] == 8) {
+        return Err(Error::parse(
+            &name,
+            "header",
+            format!("shape is {shape:?}, expected (N, 6) or (N, 8)"),
+        ));
+    }
+    if npy.order() != npyz::Order::C {
+        return Err(Error::parse(
+            &name,
+            "header",
+            "Fortran-ordered array; save it in C order (numpy.ascontiguousarray)",
+        ));
+    }
+    let (n, w) = (shape[0] as usize, shape[1] as usize);
+    let data: Vec<f32> = npy.into_vec().map_err(|e| {
+        Error::parse(
+            &name,
+            "data",
+            format!("expected {n} rows of {w} float32 values: {e}"),
+        )
+    })?;
+    if data.len() != n * w {
+        return Err(Error::parse(
+            &name,
+            "data",
+            format!("expected {} values, found {}", n * w, data.len()),
+        ));
+    }
+    let mut rays = RayBatch::with_capacity(n);
+    for (i, row) in data.chunks_exact(w).enumerate() {
+        let (tmin, tmax) = if w == 8 {
+            (row[6], row[7])
+        } else {
+            (0.0, f32::INFINITY)
+        };
+        if row[..6].iter().any(|x| !x.is_finite()) {
+            return Err(Error::parse(
+                &name,
+                format!("row {i}"),
+                format!("non-finite origin or direction {:?}", &row[..6]),
+            ));
+        }
+        if row[3] == 0.0 && row[4] == 0.0 && row[5] == 0.0 {
+            return Err(Error::parse(&name, format!("row {i}"), "zero direction"));
+        }
+        if tmin.is_nan() || tmax.is_nan() {
+            return Err(Error::parse(
+                &name,
+                format!("row {i}"),
+                "tmin or tmax is NaN",
+            ));
+        }
+        rays.push(Ray {
+            origin: glam::Vec3::new(row[0], row[1], row[2]),
+            dir: glam::Vec3::new(row[3], row[4], row[5]),
+            tmin,
+            tmax,
+        });
+    }
+    Ok(rays)
+}
+
+/// Writes rays as float32 `(N, 8)`.
+pub fn write_rays(path: impl AsRef<Path>, rays: &RayBatch) -> Result<()> {
+    let n = rays.len();
+    write_atomic(path.as_ref(), |w| {
+        let mut out = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[n as u64, 8])
+            .writer(w)
+            .begin_nd()?;
+        for i in 0..n {
+            out.extend([
+                rays.ox[i],
+                rays.oy[i],
+                rays.oz[i],
+                rays.dx[i],
+                rays.dy[i],
+                rays.dz[i],
+                rays.tmin[i],
+                rays.tmax[i],
+            ])?;
+        }
+        out.finish()
+    })
+}
+
+/// Writes closest hits as the structured `hits.npy`.
+pub fn write_hits(path: impl AsRef<Path>, hits: &HitBatch) -> Result<()> {
+    let n = hits.len();
+    write_atomic(path.as_ref(), |w| {
+        let mut out = npyz::WriteOptions::<HitRecord>::new()
+            .default_dtype()
+            .shape(&[n as u64])
+            .writer(w)
+            .begin_nd()?;
+        for i in 0..n {
+            out.push(&HitRecord {
+                t: hits.t[i],
+                prim: hits.prim[i],
+                u: hits.u[i],
+                v: hits.v[i],
+            })?;
+        }
+        out.finish()
+    })
+}
+
+/// Reads a `hits.npy` file.
+pub fn read_hits(path: impl AsRef<Path>) -> Result<HitBatch> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let npy = open_npy(path)?;
+    let expected = <HitRecord as npyz::AutoSerialize>::default_dtype();
+    if npy.dtype() != expected {
+        return Err(Error::parse(
+            &name,
+            "header",
+            format!(
+                "dtype is {}, expected {}",
+                npy.dtype().descr(),
+                expected.descr()
+            ),
+        ));
+    }
+    let recs: Vec<HitRecord> = npy
+        .into_vec()
+        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
+    let mut h = HitBatch::new(0);
+    for r in recs {
+        h.t.push(r.t);
+        h.prim.push(r.prim);
+        h.u.push(r.u);
+        h.v.push(r.v);
+    }
+    Ok(h)
+}
+
+/// Writes occlusion flags as `uint8` (1 = occluded).
+pub fn write_occlusion(path: impl AsRef<Path>, occluded: &[bool]) -> Result<()> {
+    write_atomic(path.as_ref(), |w| {
+        let mut out = npyz::WriteOptions::<u8>::new()
+            .default_dtype()
+            .shape(&[occluded.len() as u64])
+            .writer(w)
+            .begin_nd()?;
+        out.extend(occluded.iter().map(|&b| b as u8))?;
+        out.finish()
+    })
+}
+
+/// Reads occlusion flags written by [`write_occlusion`].
+pub fn read_occlusion(path: impl AsRef<Path>) -> Result<Vec<bool>> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let npy = open_npy(path)?;
+    if !is_plain(&npy.dtype(), 'u', 1) || npy.shape().len() != 1 {
+        return Err(Error::parse(
+            &name,
+            "header",
+            format!(
+                "expected a 1-d uint8 array, got {} {:?}",
+                npy.dtype().descr(),
+                npy.shape()
+            ),
+        ));
+    }
+    let v: Vec<u8> = npy
+        .into_vec()
+        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
+    Ok(v.into_iter().map(|b| b != 0).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut rays = RayBatch::default();
+        rays.push(Ray {
+            origin: Vec3::new(1.0, 2.0, 3.0),
+            dir: Vec3::X,
+            tmin: 0.5,
+            tmax: f32::INFINITY,
+        });
+        rays.push(Ray {
+            origin: Vec3::ZERO,
+            dir: -Vec3::Z,
+            tmin: 0.0,
+            tmax: 9.0,
+        });
+        let p = dir.path().join("r.npy");
+        write_rays(&p, &rays).unwrap();
+        let back = read_rays(&p).unwrap();
+        assert_eq!(back.ox, rays.ox);
+        assert_eq!(back.tmax, rays.tmax);
+        let mut hits = HitBatch::new(3);
+        hits.t[1] = 2.5;
+        hits.prim[1] = 7;
+        hits.u[1] = 0.25;
+        let p = dir.path().join("h.npy");
+        write_hits(&p, &hits).unwrap();
+        assert_eq!(read_hits(&p).unwrap(), hits);
+        let p = dir.path().join("o.npy");
+        write_occlusion(&p, &[true, false, true]).unwrap();
+        assert_eq!(read_occlusion(&p).unwrap(), vec![true, false, true]);
+        // Empty batches are valid files.
+        let p = dir.path().join("e.npy");
+        write_rays(&p, &RayBatch::default()).unwrap();
+        assert_eq!(read_rays(&p).unwrap().len(), 0);
+    }
+
+    #[test]
+    fn rejects_bad_files_with_place() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.npy");
+        // Wrong dtype.
+        npyz::WriteOptions::<f64>::new()
+            .default_dtype()
+            .shape(&[1, 6])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap()
+            .finish()
+            .unwrap_or(());
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("bad.npy") && e.contains("dtype"), "{e}");
+        // Wrong shape.
+        let mut w = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[2, 5])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([0.0f32; 10]).unwrap();
+        w.finish().unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("shape"), "{e}");
+        // NaN in row 1.
+        let mut w = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[2, 6])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            f32::NAN,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+        ])
+        .unwrap();
+        w.finish().unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("row 1") && e.contains("non-finite"), "{e}");
+        // Truncated data.
+        let good = dir.path().join("g.npy");
+        write_rays(
+            &good,
+            &RayBatch::from_rays(
+                [Ray {
+                    origin: Vec3::ZERO,
+                    dir: Vec3::X,
+                    tmin: 0.0,
+                    tmax: 1.0,
+                }; 4],
+            ),
+        )
+        .unwrap();
+        let bytes = std::fs::read(&good).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() - 10]).unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("bad.npy") && e.contains("data"), "{e}");
+        // Not an npy at all.
+        std::fs::write(&p, b"hello").unwrap();
+        assert!(read_rays(&p).unwrap_err().to_string().contains("header"));
+    }
+}
