@@ -155,6 +155,9 @@ struct TracerArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Pin worker thread k to core k (mod the cores this process may use), for steady benchmarks.
+    #[arg(long)]
+    pin: bool,
     /// Print one JSON object with scene, tracer, counts, times and counters.
     #[arg(long)]
     json: bool,
@@ -226,8 +229,8 @@ fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Info { scene, json } => info(&open_scene(&scene)?, json),
         Cmd::Rays(r) => rays(r),
-        Cmd::Trace(t) => with_threads(t.tracer.threads, || trace(&t)),
-        Cmd::Render(r) => with_threads(r.tracer.threads, || render_cmd(&r)),
+        Cmd::Trace(t) => with_threads(t.tracer.threads, t.tracer.pin, || trace(&t)),
+        Cmd::Render(r) => with_threads(r.tracer.threads, r.tracer.pin, || render_cmd(&r)),
         Cmd::Export { scene, out } => export(&open_scene(&scene)?, &out),
         Cmd::Tracers => {
             for n in tracers::NAMES {
@@ -238,20 +241,30 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Runs `f` in a rayon pool of `threads` workers (the global pool when `None`).
+/// Runs `f` in a rayon pool of `threads` workers (all cores when `None`), optionally pinning
+/// worker k to the k-th core this process may run on.
 fn with_threads<T: Send>(
     threads: Option<usize>,
+    pin: bool,
     f: impl FnOnce() -> Result<T> + Send,
 ) -> Result<T> {
-    match threads {
-        None => f(),
-        Some(0) => bail!("--threads must be at least 1"),
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .context("starting the thread pool")?
-            .install(f),
+    if threads == Some(0) {
+        bail!("--threads must be at least 1");
     }
+    if threads.is_none() && !pin {
+        return f();
+    }
+    let mut b = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0));
+    if pin {
+        let cores = core_affinity::get_core_ids().unwrap_or_default();
+        if cores.is_empty() {
+            bail!("--pin: cannot read this process's CPU affinity");
+        }
+        b = b.start_handler(move |k| {
+            core_affinity::set_for_current(cores[k % cores.len()]);
+        });
+    }
+    b.build().context("starting the thread pool")?.install(f)
 }
 
 fn spinner(msg: impl Into<String>) -> ProgressBar {
