@@ -42,6 +42,8 @@ enum Cmd {
     Trace(TraceArgs),
     /// Render an image (the embedded bunny when no scene is given).
     Render(RenderArgs),
+    /// Render a sequence whose geometry changes every frame, re-preparing the tracer each frame.
+    Animate(AnimateArgs),
     /// Write the world-space triangles as a float32 (T, 9) .npy file [v0 v1 v2], in primitive-id order.
     Export {
         /// Scene file or generator.
@@ -184,6 +186,31 @@ struct TraceArgs {
 }
 
 #[derive(Args)]
+struct AnimateArgs {
+    /// Scene file or generator; the embedded bunny when omitted.
+    scene: Option<String>,
+    /// Motion: explode (triangles fly apart) or spin-parts (meshes rotate rigidly).
+    #[arg(long, default_value = "explode")]
+    motion: raysift::scene::animate::Motion,
+    /// Number of frames (time runs from 0 to 1 over them).
+    #[arg(long, default_value_t = 8)]
+    frames: u32,
+    /// Output folder for frame_NNNN.png (created if missing).
+    #[arg(long)]
+    out: PathBuf,
+    /// Only time the frames; write no images.
+    #[arg(long)]
+    no_images: bool,
+    #[command(flatten)]
+    view: ViewArgs,
+    /// Shading: normal, depth or diffuse.
+    #[arg(long, default_value = "diffuse")]
+    shade: Shade,
+    #[command(flatten)]
+    tracer: TracerArgs,
+}
+
+#[derive(Args)]
 struct RenderArgs {
     /// Scene file or generator; the embedded bunny when omitted.
     scene: Option<String>,
@@ -195,6 +222,15 @@ struct RenderArgs {
     /// Shading: normal, depth or diffuse (with shadows).
     #[arg(long, default_value = "diffuse")]
     shade: Shade,
+    /// Integrator: raycast (one ray per pixel, shaded) or path (diffuse path tracing under a sky).
+    #[arg(long, default_value = "raycast", value_parser = ["raycast", "path"])]
+    integrator: String,
+    /// Path tracing: samples per pixel.
+    #[arg(long, default_value_t = 4)]
+    spp: u32,
+    /// Path tracing: bounces after the primary hit (no Russian roulette).
+    #[arg(long, default_value_t = 7)]
+    bounces: u32,
     /// Output PNG.
     #[arg(long, default_value = "raysift.png")]
     out: PathBuf,
@@ -231,6 +267,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Rays(r) => rays(r),
         Cmd::Trace(t) => with_threads(t.tracer.threads, t.tracer.pin, || trace(&t)),
         Cmd::Render(r) => with_threads(r.tracer.threads, r.tracer.pin, || render_cmd(&r)),
+        Cmd::Animate(a) => with_threads(a.tracer.threads, a.tracer.pin, || animate(&a)),
         Cmd::Export { scene, out } => export(&open_scene(&scene)?, &out),
         Cmd::Tracers => {
             for n in tracers::NAMES {
@@ -538,6 +575,9 @@ fn render_cmd(a: &RenderArgs) -> Result<()> {
         a.view.height
     ));
     let prep = tracer.prepare_timed(s.clone())?;
+    if a.integrator == "path" {
+        return path_render(a, &s, tracer.as_ref(), &cam, &prep, t0, pb);
+    }
     let (img, rs) = render::raycast(
         &s,
         tracer.as_ref(),
@@ -619,5 +659,130 @@ fn export(s: &Scene, out: &Path) -> Result<()> {
         }
         o.finish()
     })?;
+    Ok(())
+}
+
+fn path_render(
+    a: &RenderArgs,
+    s: &Scene,
+    tracer: &dyn Tracer,
+    cam: &Camera,
+    prep: &raysift::Stats,
+    t0: Instant,
+    pb: ProgressBar,
+) -> Result<()> {
+    let cfg = render::path::PathConfig {
+        spp: a.spp.max(1),
+        bounces: a.bounces,
+        ..Default::default()
+    };
+    let (img, per_depth) =
+        render::path::path_trace(s, tracer, cam, a.view.width, a.view.height, &cfg);
+    pb.finish_and_clear();
+    img.save_png(&a.out)?;
+    let rays: u64 = per_depth.iter().map(|b| b.rays).sum();
+    let trace_ms: f64 = per_depth.iter().map(|b| b.stats.trace_ms).sum();
+    if a.tracer.json {
+        let v = json!({"scene": s.name, "triangles": s.len(), "tracer": tracer.name(), "integrator": "path", "spp": cfg.spp, "bounces": cfg.bounces,
+                       "width": a.view.width, "height": a.view.height, "threads": rayon::current_num_threads(), "rays": rays,
+                       "prepare_ms": prep.prepare_ms, "trace_ms": trace_ms, "frame_ms": t0.elapsed().as_secs_f64() * 1e3,
+                       "mrays_per_s": rays as f64 / (trace_ms * 1e3).max(1e-9), "per_bounce": per_depth, "out": a.out.display().to_string()});
+        println!("{v}");
+    } else {
+        eprintln!(
+            "wrote {} ({rays} rays in {trace_ms:.0} ms of tracing)",
+            a.out.display()
+        );
+    }
+    if a.stats {
+        for b in &per_depth {
+            eprintln!(
+                "depth {}: {} rays, {} hits, {:.1} ms, {:.2} Mrays/s",
+                b.depth, b.rays, b.hits, b.stats.trace_ms, b.mrays_per_s
+            );
+        }
+    }
+    Ok(())
+}
+
+fn animate(a: &AnimateArgs) -> Result<()> {
+    if a.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    if a.view.width == 0 || a.view.height == 0 {
+        bail!("--width and --height must be positive");
+    }
+    let mut tracer = make_tracer(&a.tracer)?;
+    let base = open_scene_or_default(a.scene.as_deref())?;
+    let mut anim = raysift::scene::animate::Animation::new(&base, a.motion)?;
+    // Frame the whole motion: the union of the first and last frames' bounds.
+    let bounds = anim.at(0.0).bounds().union(anim.at(1.0).bounds());
+    let mut cam = Camera::framing(
+        &bounds,
+        a.view.fov,
+        a.view.width as f32 / a.view.height as f32,
+    );
+    cam.eye = a.view.eye.unwrap_or(cam.eye);
+    cam.look = a.view.look.unwrap_or(cam.look);
+    cam.up = a.view.up;
+    cam.validate()?;
+    if !a.no_images {
+        std::fs::create_dir_all(&a.out)
+            .with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
+    }
+    let pb = ProgressBar::new(a.frames as u64);
+    pb.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames [{elapsed}<{eta}]")
+            .expect("valid template"),
+    );
+    let mut frames = Vec::new();
+    for k in 0..a.frames {
+        let t = if a.frames == 1 {
+            0.0
+        } else {
+            k as f32 / (a.frames - 1) as f32
+        };
+        let u0 = Instant::now();
+        let scene = Arc::new(anim.at(t).clone());
+        let update_ms = u0.elapsed().as_secs_f64() * 1e3;
+        let prep = tracer.prepare_timed(scene.clone())?;
+        let (img, rs) = render::raycast(
+            &scene,
+            tracer.as_ref(),
+            &cam,
+            a.view.width,
+            a.view.height,
+            a.shade,
+            None,
+        );
+        let trace_ms = rs.primary.trace_ms + rs.shadow.as_ref().map_or(0.0, |s| s.trace_ms);
+        if !a.no_images {
+            img.save_png(&a.out.join(format!("frame_{k:04}.png")))?;
+        }
+        frames.push(json!({"frame": k, "time": t, "update_ms": update_ms, "prepare_ms": prep.prepare_ms, "trace_ms": trace_ms,
+                           "frame_ms": prep.prepare_ms + trace_ms, "hits": rs.hits, "tracer_bytes": tracer.bytes()}));
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let mean = |key: &str| {
+        frames
+            .iter()
+            .map(|f| f[key].as_f64().unwrap_or(0.0))
+            .sum::<f64>()
+            / frames.len() as f64
+    };
+    if a.tracer.json {
+        let v = json!({"scene": base.name, "triangles": base.len(), "tracer": tracer.name(), "motion": format!("{:?}", a.motion),
+                       "width": a.view.width, "height": a.view.height, "threads": rayon::current_num_threads(),
+                       "mean_prepare_ms": mean("prepare_ms"), "mean_trace_ms": mean("trace_ms"), "mean_frame_ms": mean("frame_ms"), "frames": frames});
+        println!("{v}");
+    } else {
+        let (p, t, f) = (mean("prepare_ms"), mean("trace_ms"), mean("frame_ms"));
+        eprintln!(
+            "{} frames with {}: mean prepare {p:.1} ms + trace {t:.1} ms = {f:.1} ms per frame",
+            a.frames,
+            tracer.name()
+        );
+    }
     Ok(())
 }

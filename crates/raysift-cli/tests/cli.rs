@@ -422,3 +422,74 @@ fn bad_input_is_a_clean_error_without_output() {
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
+
+#[test]
+fn animate_writes_frames_and_reports_per_frame_times() {
+    let d = tmp();
+    let out = p(d.path(), "frames");
+    for motion in ["explode", "spin-parts"] {
+        let o = ok(&[
+            "animate",
+            "sphere:300",
+            "--motion",
+            motion,
+            "--frames",
+            "3",
+            "--tracer",
+            "naive",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--out",
+            &out,
+            "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let frames = v["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), 3);
+        assert!(frames
+            .iter()
+            .all(|f| f["trace_ms"].as_f64().unwrap() > 0.0 && f["prepare_ms"].is_number()));
+        // The geometry changes between frames, so the hit counts do too (explode spreads out).
+        assert!(d.path().join("frames/frame_0002.png").exists());
+    }
+    fails(
+        &["animate", "sphere:300", "--motion", "wobble", "--out", &out],
+        "wobble",
+    );
+}
+
+#[test]
+fn path_tracing_reports_every_bounce() {
+    let d = tmp();
+    let out = p(d.path(), "pt.png");
+    let o = ok(&[
+        "render",
+        "cornell",
+        "--tracer",
+        "naive",
+        "--integrator",
+        "path",
+        "--spp",
+        "2",
+        "--bounces",
+        "3",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--out",
+        &out,
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let b = v["per_bounce"].as_array().unwrap();
+    assert_eq!(b.len(), 4);
+    assert_eq!(b[0]["rays"], 2 * 24 * 24);
+    // Inside the closed-ish box most paths keep bouncing; each depth traces the previous depth's hits.
+    for k in 1..4 {
+        assert_eq!(b[k]["rays"], b[k - 1]["hits"]);
+    }
+    assert!(std::fs::metadata(&out).unwrap().len() > 100);
+}

@@ -12,6 +12,7 @@
 //! Degenerate triangles keep their id but are collapsed to their first vertex in the soup, so
 //! the shared triangle test never hits them (see `geom::triangle`).
 
+pub mod animate;
 pub mod io;
 pub mod procedural;
 
