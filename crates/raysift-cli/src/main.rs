@@ -254,7 +254,17 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) => {
+            // Usage errors as one line, like every other error (the full usage is in --help).
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments").trim_start_matches("error: ");
+            eprintln!("raysift: error: {first} (see --help)");
+            std::process::exit(2);
+        }
+    };
     if let Err(e) = run(cli) {
         eprintln!("raysift: error: {e:#}");
         std::process::exit(2);
