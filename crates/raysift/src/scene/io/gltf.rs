@@ -433,6 +433,10 @@ impl Builder<'_> {
     fn gather(&self, acc: &gltf::Accessor, elem: usize) -> Result<Vec<Elem<'_>>> {
         let count = acc.count();
         let place = format!("accessors[{}]", acc.index());
+        if count == 0 {
+            // The spec's minimum; `gltf` 1.4 does not validate it (and its own reader underflows).
+            return Err(Error::parse(self.file, place, "count is 0 (glTF requires at least 1)"));
+        }
         let mut elems: Vec<Elem> = match acc.view() {
             Some(view) => {
                 let s = self.strided(&view, acc.offset(), count, elem, &place)?;

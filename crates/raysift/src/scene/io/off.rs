@@ -34,7 +34,8 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
         .enumerate()
         .map(|(i, l)| (i + 1, l.split('#').next().unwrap_or("").trim_ascii()))
         .filter(|(_, l)| !l.is_empty());
-    let last_line = text.split('\n').count();
+    // The last line with content, for "unexpected end of file" (a final newline starts no line).
+    let last_line = text.lines().count().max(1);
 
     let Some((hl, head)) = lines.next() else {
         return Err(at(1, "empty file (expected an OFF header)".into()));
