@@ -12,9 +12,12 @@
 //! is built here from `face_arities`, which keeps the order under our control.
 //!
 //! **Meshes and primitive ids**: one mesh per tobj model, named after it. tobj starts a new
-//! model at every `o`/`g` line and every `usemtl` change, and appends models in file order
-//! with their faces in file order; so meshes in order, faces in order, is exactly the file
-//! order of the faces. A file that interleaves groups (`g a`, `g b`, `g a` again) gives three
+//! model at every `o`/`g` line that follows faces (it would also split at a `usemtl` that
+//! changes the material, but materials are not loaded here, so `usemtl` never splits), and
+//! appends models in file order with their faces in file order; so meshes in order, faces in
+//! order, is exactly the file order of the faces. A model is named by the `o`/`g` line before
+//! its faces (`unnamed_object` if none): a file that writes `g name` *after* a group's faces,
+//! as `CornellBox-Original.obj` does for its boxes, gets the previous name on those faces. A file that interleaves groups (`g a`, `g b`, `g a` again) gives three
 //! meshes, two of them named `a`: faces are never regrouped, so primitive id = index of the
 //! triangle in file order, whatever the grouping. Each mesh holds the positions its faces use
 //! (in first-use order), so a vertex shared by two groups is stored in both.
