@@ -95,10 +95,16 @@ fn split_glb<'a>(bytes: &'a [u8], file: &str) -> Result<(&'a [u8], Option<Vec<u8
             .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
     };
     let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
-        return Err(err(bytes.len(), "truncated GLB header (12 bytes needed)".into()));
+        return Err(err(
+            bytes.len(),
+            "truncated GLB header (12 bytes needed)".into(),
+        ));
     };
     if version != 2 {
-        return Err(err(4, format!("unsupported GLB version {version} (2 expected)")));
+        return Err(err(
+            4,
+            format!("unsupported GLB version {version} (2 expected)"),
+        ));
     }
     if length as usize != bytes.len() {
         return Err(err(
@@ -294,7 +300,10 @@ impl Builder<'_> {
         let mut tris = Vec::new();
         for prim in mesh.primitives() {
             let mode = prim.mode();
-            if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
                 continue;
             }
             let place = |what: &str| {
@@ -322,7 +331,7 @@ impl Builder<'_> {
             let b = base as u32;
             match mode {
                 Mode::Triangles => {
-                    if n % 3 != 0 {
+                    if !n.is_multiple_of(3) {
                         return Err(Error::parse(
                             self.file,
                             place(""),
@@ -435,7 +444,11 @@ impl Builder<'_> {
         let place = format!("accessors[{}]", acc.index());
         if count == 0 {
             // The spec's minimum; `gltf` 1.4 does not validate it (and its own reader underflows).
-            return Err(Error::parse(self.file, place, "count is 0 (glTF requires at least 1)"));
+            return Err(Error::parse(
+                self.file,
+                place,
+                "count is 0 (glTF requires at least 1)",
+            ));
         }
         let mut elems: Vec<Elem> = match acc.view() {
             Some(view) => {
@@ -474,7 +487,10 @@ impl Builder<'_> {
                     let e = is.get(k);
                     return Err(Error::parse(
                         self.file,
-                        format!("{place}, sparse index {k} (buffer {}, byte {})", e.buffer, e.offset),
+                        format!(
+                            "{place}, sparse index {k} (buffer {}, byte {})",
+                            e.buffer, e.offset
+                        ),
                         format!("sparse index {target} out of range (count {count})"),
                     ));
                 }
