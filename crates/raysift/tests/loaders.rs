@@ -665,7 +665,11 @@ fn gltf_malformed() {
         "buffers[0].uri",
     );
     let cyc = emb(&buf).replace(r#""mesh": 0}"#, r#""mesh": 0, "children": [0]}"#);
-    load_err(d, "cycle.gltf", cyc.as_bytes(), "nodes[");
+    let e = load_err(d, "cycle.gltf", cyc.as_bytes(), "nodes[0]");
+    assert!(e.contains("reached twice"), "{e}");
+    // Two parents sharing a child (a DAG, not a tree) is rejected the same way.
+    let dag = emb(&buf).replace(r#""children": [1]"#, r#""children": [1, 1]"#);
+    load_err(d, "dag.gltf", dag.as_bytes(), "nodes[1]");
     // GLB: truncated file, and a header shorter than itself.
     let g = glb(&gltf_json(r#"{"byteLength": 60}"#), &buf);
     let e = load_err(d, "trunc.glb", &g[..g.len() - 10], "byte 8");
@@ -675,6 +679,34 @@ fn gltf_malformed() {
     let mut chunk = g.clone();
     chunk[12..16].copy_from_slice(&100000u32.to_le_bytes());
     load_err(d, "chunk.glb", &chunk, "byte 12");
+}
+
+#[test]
+fn gltf_deep_hierarchy_does_not_overflow_the_stack() {
+    // A chain of 200,000 nodes: recursion would overflow the stack (an abort, not an error).
+    let n = 200_000;
+    let buf = gltf_buffer();
+    let mut nodes = String::new();
+    for i in 0..n {
+        if i + 1 < n {
+            nodes.push_str(&format!(r#"{{"children": [{}]}},"#, i + 1));
+        } else {
+            nodes.push_str(r#"{"translation": [0, 0, 1], "mesh": 0}"#);
+        }
+    }
+    let json = gltf_json(&format!(
+        r#"{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}"#,
+        base64(&buf)
+    ))
+    .replace(
+        r#"{"name": "parent", "translation": [10, 0, 0], "children": [1]},
+    {"name": "child", "scale": [2, 2, 2], "mesh": 0}"#,
+        &nodes,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let s = load(write(dir.path(), "deep.gltf", json.as_bytes())).unwrap();
+    assert_eq!(s.len(), 4);
+    assert_eq!(tri(&s, 0)[1], v(1., 0., 1.));
 }
 
 #[test]

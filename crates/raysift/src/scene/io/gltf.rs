@@ -65,10 +65,11 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
         cache: HashMap::new(),
         out: Vec::new(),
     };
-    let roots: Vec<gltf::Node> = if let Some(scene) = doc.default_scene() {
-        scene.nodes().collect()
+    // One list of root nodes per traversal (a node may appear in several scenes).
+    let traversals: Vec<Vec<gltf::Node>> = if let Some(scene) = doc.default_scene() {
+        vec![scene.nodes().collect()]
     } else if doc.scenes().len() > 0 {
-        doc.scenes().flat_map(|s| s.nodes()).collect()
+        doc.scenes().map(|s| s.nodes().collect()).collect()
     } else {
         // No scene: every node that is nobody's child.
         let mut is_child = vec![false; doc.nodes().len()];
@@ -77,11 +78,10 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
                 is_child[c.index()] = true;
             }
         }
-        doc.nodes().filter(|n| !is_child[n.index()]).collect()
+        vec![doc.nodes().filter(|n| !is_child[n.index()]).collect()]
     };
-    let mut on_path = vec![false; doc.nodes().len()];
-    for node in roots {
-        builder.visit(&node, Mat4::IDENTITY, &mut on_path)?;
+    for roots in traversals {
+        builder.traverse(roots, doc.nodes().len())?;
     }
     Ok(builder.out)
 }
@@ -254,44 +254,60 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn visit(&mut self, node: &gltf::Node, parent: Mat4, on_path: &mut [bool]) -> Result<()> {
-        if on_path[node.index()] {
-            return Err(Error::parse(
-                self.file,
-                format!("nodes[{}]", node.index()),
-                "the node hierarchy has a cycle",
-            ));
-        }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if let Some(mesh) = node.mesh() {
-            if !self.cache.contains_key(&mesh.index()) {
-                let decoded = self.decode_mesh(&mesh)?;
-                self.cache.insert(mesh.index(), decoded);
+    /// Depth-first, children in order, with an explicit stack: a hostile file with a very deep
+    /// hierarchy must not overflow the call stack. glTF nodes form disjoint trees, so a node
+    /// reached twice in one scene (two parents, a cycle, or listed twice) is an error; that
+    /// also bounds the work by the node count.
+    fn traverse(&mut self, roots: Vec<gltf::Node>, node_count: usize) -> Result<()> {
+        let mut seen = vec![false; node_count];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut seen[node.index()], true) {
+                return Err(Error::parse(
+                    self.file,
+                    format!("nodes[{}]", node.index()),
+                    "node reached twice in one scene (more than one parent, a cycle, or listed twice)",
+                ));
             }
-            let (positions, indices) = &self.cache[&mesh.index()];
-            if !indices.is_empty() {
-                let node_name = node
-                    .name()
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("node {}", node.index()));
-                let mesh_name = mesh
-                    .name()
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("mesh {}", mesh.index()));
-                let mut m = Mesh::new(
-                    format!("{node_name}/{mesh_name}"),
-                    positions.clone(),
-                    indices.clone(),
-                );
-                m.transform = Affine3A::from_mat4(world);
-                self.out.push(m);
-            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.instance(&node, world)?;
+            let children: Vec<gltf::Node> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
         }
-        on_path[node.index()] = true;
-        for child in node.children() {
-            self.visit(&child, world, on_path)?;
+        Ok(())
+    }
+
+    /// Adds the node's mesh, if any, as one [`Mesh`] with the node's world transform.
+    fn instance(&mut self, node: &gltf::Node, world: Mat4) -> Result<()> {
+        let Some(mesh) = node.mesh() else {
+            return Ok(());
+        };
+        if !self.cache.contains_key(&mesh.index()) {
+            let decoded = self.decode_mesh(&mesh)?;
+            self.cache.insert(mesh.index(), decoded);
         }
-        on_path[node.index()] = false;
+        let (positions, indices) = &self.cache[&mesh.index()];
+        if !indices.is_empty() {
+            let node_name = node
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("node {}", node.index()));
+            let mesh_name = mesh
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("mesh {}", mesh.index()));
+            let mut m = Mesh::new(
+                format!("{node_name}/{mesh_name}"),
+                positions.clone(),
+                indices.clone(),
+            );
+            m.transform = Affine3A::from_mat4(world);
+            self.out.push(m);
+        }
         Ok(())
     }
 
