@@ -682,6 +682,67 @@ fn gltf_malformed() {
 }
 
 #[test]
+fn gltf_sparse_accessors() {
+    // Buffer: the usual 60 bytes, then sparse index u8 [2] (padded to 4), then one VEC3 value.
+    let mut buf = gltf_buffer();
+    buf.extend_from_slice(&[2, 0, 0, 0]);
+    for c in [5f32, 5., 0.] {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    let sparse = |view: &str| {
+        format!(
+            r#"{{{view}"componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [5, 5, 0],
+      "sparse": {{"count": 1, "indices": {{"bufferView": 2, "componentType": 5121}}, "values": {{"bufferView": 3}}}}}}"#
+        )
+    };
+    let make = |acc0: String| {
+        gltf_json(&format!(
+            r#"{{"byteLength": 76, "uri": "data:application/octet-stream;base64,{}"}}"#,
+            base64(&buf)
+        ))
+        .replace(
+            r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}"#,
+            &acc0,
+        )
+        .replace(
+            r#"{"buffer": 0, "byteOffset": 48, "byteLength": 12}"#,
+            r#"{"buffer": 0, "byteOffset": 48, "byteLength": 12},
+    {"buffer": 0, "byteOffset": 60, "byteLength": 1},
+    {"buffer": 0, "byteOffset": 64, "byteLength": 12}"#,
+        )
+    };
+    let w = |p: Vec3| p * 2.0 + v(10., 0., 0.);
+    let dir = tempfile::tempdir().unwrap();
+    // Base values from bufferView 0, element 2 replaced by (5, 5, 0).
+    let s = load(write(
+        dir.path(),
+        "sparse.gltf",
+        make(sparse(r#""bufferView": 0, "#)).as_bytes(),
+    ))
+    .unwrap();
+    assert_eq!(tri(&s, 0), [w(sq(0)), w(sq(1)), w(v(5., 5., 0.))]);
+    assert_eq!(tri(&s, 1), [w(sq(0)), w(v(5., 5., 0.)), w(sq(3))]);
+    // No bufferView: base values are zeros (the triangles are degenerate, so check the mesh).
+    let s = load(write(dir.path(), "zeros.gltf", make(sparse("")).as_bytes())).unwrap();
+    let p = &s.meshes()[0].positions;
+    assert_eq!(p[..4], [Vec3::ZERO, Vec3::ZERO, v(5., 5., 0.), Vec3::ZERO]);
+    // A sparse index past the accessor's count.
+    let mut bad = make(sparse(r#""bufferView": 0, "#));
+    bad = bad.replace(&base64(&buf), &{
+        let mut b = buf.clone();
+        b[60] = 9;
+        base64(&b)
+    });
+    let e = load_err(
+        dir.path(),
+        "badsparse.gltf",
+        bad.as_bytes(),
+        "accessors[0], sparse index 0 (buffer 0, byte 60)",
+    );
+    assert!(e.contains("out of range"), "{e}");
+}
+
+#[test]
 fn gltf_deep_hierarchy_does_not_overflow_the_stack() {
     // A chain of 200,000 nodes: recursion would overflow the stack (an abort, not an error).
     let n = 200_000;
