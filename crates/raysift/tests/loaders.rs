@@ -726,6 +726,13 @@ fn gltf_sparse_accessors() {
     let s = load(write(dir.path(), "zeros.gltf", make(sparse("")).as_bytes())).unwrap();
     let p = &s.meshes()[0].positions;
     assert_eq!(p[..4], [Vec3::ZERO, Vec3::ZERO, v(5., 5., 0.), Vec3::ZERO]);
+    // A huge count with no bufferView behind it: an error, not a huge allocation.
+    let huge = make(sparse("")).replace(
+        r#""count": 4, "type": "VEC3""#,
+        r#""count": 4000000000, "type": "VEC3""#,
+    );
+    let e = load_err(dir.path(), "huge.gltf", huge.as_bytes(), "accessors[0]");
+    assert!(e.contains("implausibly large"), "{e}");
     // A sparse index past the accessor's count.
     let mut bad = make(sparse(r#""bufferView": 0, "#));
     bad = bad.replace(&base64(&buf), &{

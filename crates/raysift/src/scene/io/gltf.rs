@@ -16,6 +16,10 @@
 //! GLB header length under 12 underflows; an invalid `%xx` URI escape is unwrapped), so this
 //! module splits the GLB container itself, pre-checks attribute indices and URIs, and decodes
 //! accessor bytes itself with checked arithmetic, reporting byte offsets. No `catch_unwind`.
+//! The node hierarchy is walked with an explicit stack (a deep chain cannot overflow the call
+//! stack), a node reached twice in one scene is an error (glTF nodes form trees), and a sparse
+//! accessor without a `bufferView` is bounded by the file's data size, so hostile counts fail
+//! cleanly instead of exhausting memory.
 
 use crate::error::{Error, Result};
 use crate::scene::Mesh;
@@ -473,6 +477,19 @@ impl Builder<'_> {
             }
             // Sparse accessor without a view: base values are zeros.
             None => {
+                // Nothing in the file backs `count` here, so bound it by the file's data: a
+                // hostile count must be an error, not a multi-gigabyte allocation.
+                let data: usize = self.buffers.iter().map(|b| b.len()).sum();
+                let limit = data.saturating_mul(16).saturating_add(1 << 24);
+                if count.saturating_mul(elem) > limit {
+                    return Err(Error::parse(
+                        self.file,
+                        place,
+                        format!(
+                            "sparse accessor without bufferView has count {count}, implausibly large for {data} bytes of buffers"
+                        ),
+                    ));
+                }
                 const ZEROS: [u8; 16] = [0; 16];
                 vec![
                     Elem {
