@@ -31,7 +31,9 @@ fn main() {
         let parsed = match format {
             Format::Obj => raysift::scene::io::obj::parse(&bytes, &f),
             Format::Ply => raysift::scene::io::ply::parse(&bytes, &f),
-            Format::Gltf | Format::Glb => raysift::scene::io::gltf::parse(&bytes, &f, path.parent()),
+            Format::Gltf | Format::Glb => {
+                raysift::scene::io::gltf::parse(&bytes, &f, path.parent())
+            }
             Format::Off => raysift::scene::io::off::parse(&bytes, &f),
         };
         let t_parse = t.elapsed();

@@ -80,7 +80,13 @@ f 1//1 3//1 5//1\n\
 f 2/1 4/2 5/1\n";
     let s = load(write(dir.path(), "poly.obj", text.as_bytes())).unwrap();
     assert_eq!(s.len(), 5);
-    let p = [v(0., 0., 0.), v(2., 0., 0.), v(3., 1., 0.), v(1., 3., 0.), v(-1., 1., 0.)];
+    let p = [
+        v(0., 0., 0.),
+        v(2., 0., 0.),
+        v(3., 1., 0.),
+        v(1., 3., 0.),
+        v(-1., 1., 0.),
+    ];
     assert_eq!(tri(&s, 0), [p[0], p[1], p[2]]);
     assert_eq!(tri(&s, 1), [p[0], p[2], p[3]]);
     assert_eq!(tri(&s, 2), [p[0], p[3], p[4]]);
@@ -133,23 +139,63 @@ fn obj_gzip() {
 fn obj_malformed() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let e = load_err(d, "badnum.obj", b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", "line 2");
+    let e = load_err(
+        d,
+        "badnum.obj",
+        b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n",
+        "line 2",
+    );
     assert!(e.contains("bad number"), "{e}");
-    let e = load_err(d, "range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "line 4");
+    let e = load_err(
+        d,
+        "range.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
+        "line 4",
+    );
     assert!(e.contains("out of range"), "{e}");
-    load_err(d, "neg.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", "line 4");
-    load_err(d, "zero.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "line 4");
+    load_err(
+        d,
+        "neg.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n",
+        "line 4",
+    );
+    load_err(
+        d,
+        "zero.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+        "line 4",
+    );
     // A texture index far below zero overflows tobj's arithmetic: must be an error, not a panic.
-    load_err(d, "vt.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/-9999999999 2/1 3/1\n", "line 5");
-    let e = load_err(d, "nan.obj", b"v 0 0 0\nv 1 NaN 0\nv 0 1 0\nf 1 2 3\n", "line 2");
+    load_err(
+        d,
+        "vt.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/-9999999999 2/1 3/1\n",
+        "line 5",
+    );
+    let e = load_err(
+        d,
+        "nan.obj",
+        b"v 0 0 0\nv 1 NaN 0\nv 0 1 0\nf 1 2 3\n",
+        "line 2",
+    );
     assert!(e.contains("non-finite"), "{e}");
-    load_err(d, "inf.obj", b"v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", "line 3");
+    load_err(
+        d,
+        "inf.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n",
+        "line 3",
+    );
     let e = load_err(d, "empty.obj", b"", "line 1");
     assert!(e.contains("empty"), "{e}");
     // Truncated in the middle of a vertex line.
     load_err(d, "trunc.obj", b"v 0 0 0\nv 1 0 0\nv 0 1", "line 3");
     load_err(d, "utf8.obj", b"v 0 0 0\n# \xff\xfe\n", "line 2");
-    load_err(d, "corner.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", "line 4");
+    load_err(
+        d,
+        "corner.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
+        "line 4",
+    );
 }
 
 // ---------------------------------------------------------------- PLY
@@ -182,7 +228,11 @@ fn ply_ascii_extra_properties_and_gzip() {
 
 /// A binary PLY with the same content as `ply_ascii`, mixing types.
 fn ply_binary(be: bool) -> Vec<u8> {
-    let fmt = if be { "binary_big_endian" } else { "binary_little_endian" };
+    let fmt = if be {
+        "binary_big_endian"
+    } else {
+        "binary_little_endian"
+    };
     let mut out = format!(
         "ply\nformat {fmt} 1.0\nelement vertex 4\nproperty float confidence\nproperty double x\n\
 property float y\nproperty float z\nproperty uchar intensity\nelement face 2\n\
@@ -236,24 +286,62 @@ fn ply_malformed() {
     let d = dir.path();
     let a = ply_ascii();
     // Line 16 is vertex 0.
-    let e = load_err(d, "badnum.ply", a.replacen("0.5 0 0 0 7", "0.5 0 zero 0 7", 1).as_bytes(), "line 16");
+    let e = load_err(
+        d,
+        "badnum.ply",
+        a.replacen("0.5 0 0 0 7", "0.5 0 zero 0 7", 1).as_bytes(),
+        "line 16",
+    );
     assert!(e.contains("bad number"), "{e}");
-    let e = load_err(d, "nan.ply", a.replacen("0.5 1 1 0 7", "0.5 1 nan 0 7", 1).as_bytes(), "line 18");
+    let e = load_err(
+        d,
+        "nan.ply",
+        a.replacen("0.5 1 1 0 7", "0.5 1 nan 0 7", 1).as_bytes(),
+        "line 18",
+    );
     assert!(e.contains("non-finite") && e.contains("vertex 2"), "{e}");
-    let e = load_err(d, "range.ply", a.replace("3 3 2 1", "3 3 2 4").as_bytes(), "line 21");
+    let e = load_err(
+        d,
+        "range.ply",
+        a.replace("3 3 2 1", "3 3 2 4").as_bytes(),
+        "line 21",
+    );
     assert!(e.contains("out of range") && e.contains("face 1"), "{e}");
     let e = load_err(d, "trunc.ply", &a.as_bytes()[..a.len() - 12], "line");
     assert!(e.contains("end of file"), "{e}");
-    let e = load_err(d, "short.ply", a.replace("4 0 1 2 3", "4 0 1 2").as_bytes(), "line 20");
+    let e = load_err(
+        d,
+        "short.ply",
+        a.replace("4 0 1 2 3", "4 0 1 2").as_bytes(),
+        "line 20",
+    );
     assert!(e.contains("declares 4 items"), "{e}");
-    let e = load_err(d, "count.ply", a.replace("element face 2", "element face 1").as_bytes(), "line 21");
-    assert!(e.contains("wrong element count") || e.contains("extra value"), "{e}");
+    let e = load_err(
+        d,
+        "count.ply",
+        a.replace("element face 2", "element face 1").as_bytes(),
+        "line 21",
+    );
+    assert!(
+        e.contains("wrong element count") || e.contains("extra value"),
+        "{e}"
+    );
     let e = load_err(d, "empty.ply", b"", "line 1");
     assert!(e.contains("empty"), "{e}");
     let e = load_err(d, "header.ply", b"plx\nformat ascii 1.0\n", "line 1");
     assert!(e.contains("not a PLY"), "{e}");
-    load_err(d, "noend.ply", b"ply\nformat ascii 1.0\nelement vertex 1\n", "line 4");
-    load_err(d, "fmt.ply", b"ply\nformat binary_middle_endian 1.0\nend_header\n", "line 2");
+    load_err(
+        d,
+        "noend.ply",
+        b"ply\nformat ascii 1.0\nelement vertex 1\n",
+        "line 4",
+    );
+    load_err(
+        d,
+        "fmt.ply",
+        b"ply\nformat binary_middle_endian 1.0\nend_header\n",
+        "line 2",
+    );
 
     // Binary: truncated data and a bad index report byte offsets.
     let b = ply_binary(false);
@@ -306,11 +394,26 @@ fn off_malformed() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let ok = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
-    let e = load_err(d, "badnum.off", ok.replace("1 0 0", "1 O 0").as_bytes(), "line 4");
+    let e = load_err(
+        d,
+        "badnum.off",
+        ok.replace("1 0 0", "1 O 0").as_bytes(),
+        "line 4",
+    );
     assert!(e.contains("bad number") && e.contains("vertex 1"), "{e}");
-    let e = load_err(d, "range.off", ok.replace("3 0 1 2", "3 0 1 3").as_bytes(), "line 6");
+    let e = load_err(
+        d,
+        "range.off",
+        ok.replace("3 0 1 2", "3 0 1 3").as_bytes(),
+        "line 6",
+    );
     assert!(e.contains("out of range") && e.contains("face 0"), "{e}");
-    let e = load_err(d, "nan.off", ok.replace("0 1 0", "0 nan 0").as_bytes(), "line 5");
+    let e = load_err(
+        d,
+        "nan.off",
+        ok.replace("0 1 0", "0 nan 0").as_bytes(),
+        "line 5",
+    );
     assert!(e.contains("non-finite"), "{e}");
     let e = load_err(d, "trunc.off", &ok.as_bytes()[..ok.len() - 8], "line");
     assert!(e.contains("end of file") && e.contains("faces"), "{e}");
@@ -318,11 +421,26 @@ fn off_malformed() {
     assert!(e.contains("empty"), "{e}");
     let e = load_err(d, "header.off", b"OBJ\n3 1 0\n", "line 1");
     assert!(e.contains("not an OFF"), "{e}");
-    let e = load_err(d, "count.off", ok.replace("3 1 0", "3 2 0").as_bytes(), "line 6");
+    let e = load_err(
+        d,
+        "count.off",
+        ok.replace("3 1 0", "3 2 0").as_bytes(),
+        "line 6",
+    );
     assert!(e.contains("declares 2 faces"), "{e}");
-    let e = load_err(d, "extra.off", format!("{ok}3 2 1 0\n").as_bytes(), "line 7");
+    let e = load_err(
+        d,
+        "extra.off",
+        format!("{ok}3 2 1 0\n").as_bytes(),
+        "line 7",
+    );
     assert!(e.contains("wrong counts"), "{e}");
-    load_err(d, "short_face.off", ok.replace("3 0 1 2", "4 0 1 2").as_bytes(), "line 6");
+    load_err(
+        d,
+        "short_face.off",
+        ok.replace("3 0 1 2", "4 0 1 2").as_bytes(),
+        "line 6",
+    );
     load_err(d, "4off.off", b"4OFF\n1 0 0\n0 0 0 0\n", "line 1");
 }
 
@@ -332,7 +450,9 @@ fn base64(data: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut s = String::new();
     for c in data.chunks(3) {
-        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
         for k in 0..4 {
             if k <= c.len() {
                 s.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);
@@ -403,11 +523,11 @@ fn check_gltf(s: &Scene) {
 
 fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
     let mut j = json.as_bytes().to_vec();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut b = bin.to_vec();
-    while b.len() % 4 != 0 {
+    while !b.len().is_multiple_of(4) {
         b.push(0);
     }
     let total = 12 + 8 + j.len() + 8 + b.len();
@@ -465,7 +585,14 @@ fn gltf_instances_and_all_scenes_without_default() {
     assert_eq!(s.meshes().len(), 2);
     assert_eq!(s.len(), 8);
     assert_eq!(s.meshes()[1].name, "node 2/square");
-    assert_eq!(tri(&s, 4), [sq(0) + v(0., 0., 5.), sq(1) + v(0., 0., 5.), sq(2) + v(0., 0., 5.)]);
+    assert_eq!(
+        tri(&s, 4),
+        [
+            sq(0) + v(0., 0., 5.),
+            sq(1) + v(0., 0., 5.),
+            sq(2) + v(0., 0., 5.)
+        ]
+    );
 }
 
 #[test]
@@ -482,12 +609,22 @@ fn gltf_malformed() {
     // Index 2 of the quad (u16 at byte 52) set to 9: out of range.
     let mut bad = buf.clone();
     bad[52..54].copy_from_slice(&9u16.to_le_bytes());
-    let e = load_err(d, "range.gltf", emb(&bad).as_bytes(), "accessors[1], element 2 (buffer 0, byte 52)");
+    let e = load_err(
+        d,
+        "range.gltf",
+        emb(&bad).as_bytes(),
+        "accessors[1], element 2 (buffer 0, byte 52)",
+    );
     assert!(e.contains("out of range"), "{e}");
     // Vertex 1's y (bytes 16..20) set to NaN.
     let mut nan = buf.clone();
     nan[16..20].copy_from_slice(&f32::NAN.to_le_bytes());
-    let e = load_err(d, "nan.gltf", emb(&nan).as_bytes(), "accessors[0], element 1 (buffer 0, byte 12)");
+    let e = load_err(
+        d,
+        "nan.gltf",
+        emb(&nan).as_bytes(),
+        "accessors[0], element 1 (buffer 0, byte 12)",
+    );
     assert!(e.contains("non-finite"), "{e}");
     // Accessor running past its view.
     let over = emb(&buf).replace(r#""count": 6"#, r#""count": 7"#);
@@ -497,15 +634,42 @@ fn gltf_malformed() {
     // count 0 is invalid glTF (minimum 1), though the gltf crate does not check it.
     let e = load_err(d, "zero.gltf", zero.as_bytes(), "accessors[1]");
     assert!(e.contains("count is 0"), "{e}");
-    let e = load_err(d, "syntax.gltf", b"{\n  \"asset\": {\"version\": \"2.0\"},\n  oops\n}", "line 3");
+    let e = load_err(
+        d,
+        "syntax.gltf",
+        b"{\n  \"asset\": {\"version\": \"2.0\"},\n  oops\n}",
+        "line 3",
+    );
     assert!(e.contains("JSON"), "{e}");
     load_err(d, "empty.gltf", b"", "byte 0");
-    let badpos = emb(&buf).replace(r#""POSITION": 0}, "indices""#, r#""POSITION": 7}, "indices""#);
-    load_err(d, "attr.gltf", badpos.as_bytes(), "meshes[0].primitives[0].attributes");
-    load_err(d, "missing.gltf", gltf_json(r#"{"byteLength": 60, "uri": "nope.bin"}"#).as_bytes(), "buffers[0]");
-    load_err(d, "pct.gltf", gltf_json(r#"{"byteLength": 60, "uri": "a%ff.bin"}"#).as_bytes(), "buffers[0].uri");
+    let badpos = emb(&buf).replace(
+        r#""POSITION": 0}, "indices""#,
+        r#""POSITION": 7}, "indices""#,
+    );
+    load_err(
+        d,
+        "attr.gltf",
+        badpos.as_bytes(),
+        "meshes[0].primitives[0].attributes",
+    );
+    load_err(
+        d,
+        "missing.gltf",
+        gltf_json(r#"{"byteLength": 60, "uri": "nope.bin"}"#).as_bytes(),
+        "buffers[0]",
+    );
+    load_err(
+        d,
+        "pct.gltf",
+        gltf_json(r#"{"byteLength": 60, "uri": "a%ff.bin"}"#).as_bytes(),
+        "buffers[0].uri",
+    );
     let cyc = emb(&buf).replace(r#""mesh": 0}"#, r#""mesh": 0, "children": [0]}"#);
-    load_err(d, "cycle.gltf", cyc.as_bytes(), "nodes[");
+    let e = load_err(d, "cycle.gltf", cyc.as_bytes(), "nodes[0]");
+    assert!(e.contains("reached twice"), "{e}");
+    // Two parents sharing a child (a DAG, not a tree) is rejected the same way.
+    let dag = emb(&buf).replace(r#""children": [1]"#, r#""children": [1, 1]"#);
+    load_err(d, "dag.gltf", dag.as_bytes(), "nodes[1]");
     // GLB: truncated file, and a header shorter than itself.
     let g = glb(&gltf_json(r#"{"byteLength": 60}"#), &buf);
     let e = load_err(d, "trunc.glb", &g[..g.len() - 10], "byte 8");
@@ -518,8 +682,165 @@ fn gltf_malformed() {
 }
 
 #[test]
+fn gltf_sparse_accessors() {
+    // Buffer: the usual 60 bytes, then sparse index u8 [2] (padded to 4), then one VEC3 value.
+    let mut buf = gltf_buffer();
+    buf.extend_from_slice(&[2, 0, 0, 0]);
+    for c in [5f32, 5., 0.] {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    let sparse = |view: &str| {
+        format!(
+            r#"{{{view}"componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [5, 5, 0],
+      "sparse": {{"count": 1, "indices": {{"bufferView": 2, "componentType": 5121}}, "values": {{"bufferView": 3}}}}}}"#
+        )
+    };
+    let make = |acc0: String| {
+        gltf_json(&format!(
+            r#"{{"byteLength": 76, "uri": "data:application/octet-stream;base64,{}"}}"#,
+            base64(&buf)
+        ))
+        .replace(
+            r#"{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}"#,
+            &acc0,
+        )
+        .replace(
+            r#"{"buffer": 0, "byteOffset": 48, "byteLength": 12}"#,
+            r#"{"buffer": 0, "byteOffset": 48, "byteLength": 12},
+    {"buffer": 0, "byteOffset": 60, "byteLength": 1},
+    {"buffer": 0, "byteOffset": 64, "byteLength": 12}"#,
+        )
+    };
+    let w = |p: Vec3| p * 2.0 + v(10., 0., 0.);
+    let dir = tempfile::tempdir().unwrap();
+    // Base values from bufferView 0, element 2 replaced by (5, 5, 0).
+    let s = load(write(
+        dir.path(),
+        "sparse.gltf",
+        make(sparse(r#""bufferView": 0, "#)).as_bytes(),
+    ))
+    .unwrap();
+    assert_eq!(tri(&s, 0), [w(sq(0)), w(sq(1)), w(v(5., 5., 0.))]);
+    assert_eq!(tri(&s, 1), [w(sq(0)), w(v(5., 5., 0.)), w(sq(3))]);
+    // No bufferView: base values are zeros (the triangles are degenerate, so check the mesh).
+    let s = load(write(dir.path(), "zeros.gltf", make(sparse("")).as_bytes())).unwrap();
+    let p = &s.meshes()[0].positions;
+    assert_eq!(p[..4], [Vec3::ZERO, Vec3::ZERO, v(5., 5., 0.), Vec3::ZERO]);
+    // A huge count with no bufferView behind it: an error, not a huge allocation.
+    let huge = make(sparse("")).replace(
+        r#""count": 4, "type": "VEC3""#,
+        r#""count": 4000000000, "type": "VEC3""#,
+    );
+    let e = load_err(dir.path(), "huge.gltf", huge.as_bytes(), "accessors[0]");
+    assert!(e.contains("implausibly large"), "{e}");
+    // A sparse index past the accessor's count.
+    let mut bad = make(sparse(r#""bufferView": 0, "#));
+    bad = bad.replace(&base64(&buf), &{
+        let mut b = buf.clone();
+        b[60] = 9;
+        base64(&b)
+    });
+    let e = load_err(
+        dir.path(),
+        "badsparse.gltf",
+        bad.as_bytes(),
+        "accessors[0], sparse index 0 (buffer 0, byte 60)",
+    );
+    assert!(e.contains("out of range"), "{e}");
+}
+
+#[test]
+fn gltf_deep_hierarchy_does_not_overflow_the_stack() {
+    // A chain of 200,000 nodes: recursion would overflow the stack (an abort, not an error).
+    let n = 200_000;
+    let buf = gltf_buffer();
+    let mut nodes = String::new();
+    for i in 0..n {
+        if i + 1 < n {
+            nodes.push_str(&format!(r#"{{"children": [{}]}},"#, i + 1));
+        } else {
+            nodes.push_str(r#"{"translation": [0, 0, 1], "mesh": 0}"#);
+        }
+    }
+    let json = gltf_json(&format!(
+        r#"{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}"#,
+        base64(&buf)
+    ))
+    .replace(
+        r#"{"name": "parent", "translation": [10, 0, 0], "children": [1]},
+    {"name": "child", "scale": [2, 2, 2], "mesh": 0}"#,
+        &nodes,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let s = load(write(dir.path(), "deep.gltf", json.as_bytes())).unwrap();
+    assert_eq!(s.len(), 4);
+    assert_eq!(tri(&s, 0)[1], v(1., 0., 1.));
+}
+
+#[test]
 fn unknown_extension_is_rejected() {
     let dir = tempfile::tempdir().unwrap();
     let p = write(dir.path(), "a.stl", b"solid");
-    assert!(load(&p).unwrap_err().to_string().contains("unknown scene format"));
+    assert!(load(&p)
+        .unwrap_err()
+        .to_string()
+        .contains("unknown scene format"));
+}
+
+// ---------------------------------------------------------------- robustness
+
+mod no_panic {
+    //! Truncated and byte-flipped versions of the valid test files must give `Ok` or `Err`,
+    //! never a panic (proptest reports a panic as a failure).
+    use super::*;
+    use proptest::prelude::*;
+    use raysift::scene::io::{gltf, obj, off, ply};
+
+    fn samples() -> Vec<(&'static str, Vec<u8>)> {
+        let buf = gltf_buffer();
+        vec![
+            ("a.obj", b"v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvn 0 0 1\ng x\nf 1/1/1 2/1/1 3/1/1\nf -3 -2 -1\nl 1 2\n".to_vec()),
+            ("a.ply", ply_ascii().into_bytes()),
+            ("le.ply", ply_binary(false)),
+            ("be.ply", ply_binary(true)),
+            ("a.off", b"OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n3 3 2 1\n".to_vec()),
+            (
+                "a.gltf",
+                gltf_json(&format!(
+                    r#"{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}"#,
+                    base64(&buf)
+                ))
+                .into_bytes(),
+            ),
+            ("a.glb", glb(&gltf_json(r#"{"byteLength": 60}"#), &buf)),
+        ]
+    }
+
+    fn parse(name: &str, bytes: &[u8]) {
+        let _ = match name.rsplit('.').next().unwrap() {
+            "obj" => obj::parse(bytes, name),
+            "ply" => ply::parse(bytes, name),
+            "off" => off::parse(bytes, name),
+            _ => gltf::parse(bytes, name, None),
+        };
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+        #[test]
+        fn mangled_files_never_panic(
+            which in 0usize..7,
+            cut in 0.0f64..1.0,
+            flips in proptest::collection::vec((0.0f64..1.0, any::<u8>()), 0..4),
+        ) {
+            let (name, mut bytes) = samples().swap_remove(which);
+            for (at, b) in flips {
+                let n = bytes.len();
+                bytes[(((n as f64) * at) as usize).min(n - 1)] = b;
+            }
+            // About a sixth of the cases keep the whole file.
+            let keep = ((bytes.len() as f64) * (1.2 * cut)).min(bytes.len() as f64) as usize;
+            parse(name, &bytes[..keep]);
+        }
+    }
 }

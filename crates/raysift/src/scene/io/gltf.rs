@@ -16,6 +16,10 @@
 //! GLB header length under 12 underflows; an invalid `%xx` URI escape is unwrapped), so this
 //! module splits the GLB container itself, pre-checks attribute indices and URIs, and decodes
 //! accessor bytes itself with checked arithmetic, reporting byte offsets. No `catch_unwind`.
+//! The node hierarchy is walked with an explicit stack (a deep chain cannot overflow the call
+//! stack), a node reached twice in one scene is an error (glTF nodes form trees), and a sparse
+//! accessor without a `bufferView` is bounded by the file's data size, so hostile counts fail
+//! cleanly instead of exhausting memory.
 
 use crate::error::{Error, Result};
 use crate::scene::Mesh;
@@ -65,10 +69,11 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
         cache: HashMap::new(),
         out: Vec::new(),
     };
-    let roots: Vec<gltf::Node> = if let Some(scene) = doc.default_scene() {
-        scene.nodes().collect()
+    // One list of root nodes per traversal (a node may appear in several scenes).
+    let traversals: Vec<Vec<gltf::Node>> = if let Some(scene) = doc.default_scene() {
+        vec![scene.nodes().collect()]
     } else if doc.scenes().len() > 0 {
-        doc.scenes().flat_map(|s| s.nodes()).collect()
+        doc.scenes().map(|s| s.nodes().collect()).collect()
     } else {
         // No scene: every node that is nobody's child.
         let mut is_child = vec![false; doc.nodes().len()];
@@ -77,11 +82,10 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
                 is_child[c.index()] = true;
             }
         }
-        doc.nodes().filter(|n| !is_child[n.index()]).collect()
+        vec![doc.nodes().filter(|n| !is_child[n.index()]).collect()]
     };
-    let mut on_path = vec![false; doc.nodes().len()];
-    for node in roots {
-        builder.visit(&node, Mat4::IDENTITY, &mut on_path)?;
+    for roots in traversals {
+        builder.traverse(roots, doc.nodes().len())?;
     }
     Ok(builder.out)
 }
@@ -95,10 +99,16 @@ fn split_glb<'a>(bytes: &'a [u8], file: &str) -> Result<(&'a [u8], Option<Vec<u8
             .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
     };
     let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
-        return Err(err(bytes.len(), "truncated GLB header (12 bytes needed)".into()));
+        return Err(err(
+            bytes.len(),
+            "truncated GLB header (12 bytes needed)".into(),
+        ));
     };
     if version != 2 {
-        return Err(err(4, format!("unsupported GLB version {version} (2 expected)")));
+        return Err(err(
+            4,
+            format!("unsupported GLB version {version} (2 expected)"),
+        ));
     }
     if length as usize != bytes.len() {
         return Err(err(
@@ -248,44 +258,60 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn visit(&mut self, node: &gltf::Node, parent: Mat4, on_path: &mut [bool]) -> Result<()> {
-        if on_path[node.index()] {
-            return Err(Error::parse(
-                self.file,
-                format!("nodes[{}]", node.index()),
-                "the node hierarchy has a cycle",
-            ));
-        }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if let Some(mesh) = node.mesh() {
-            if !self.cache.contains_key(&mesh.index()) {
-                let decoded = self.decode_mesh(&mesh)?;
-                self.cache.insert(mesh.index(), decoded);
+    /// Depth-first, children in order, with an explicit stack: a hostile file with a very deep
+    /// hierarchy must not overflow the call stack. glTF nodes form disjoint trees, so a node
+    /// reached twice in one scene (two parents, a cycle, or listed twice) is an error; that
+    /// also bounds the work by the node count.
+    fn traverse(&mut self, roots: Vec<gltf::Node>, node_count: usize) -> Result<()> {
+        let mut seen = vec![false; node_count];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut seen[node.index()], true) {
+                return Err(Error::parse(
+                    self.file,
+                    format!("nodes[{}]", node.index()),
+                    "node reached twice in one scene (more than one parent, a cycle, or listed twice)",
+                ));
             }
-            let (positions, indices) = &self.cache[&mesh.index()];
-            if !indices.is_empty() {
-                let node_name = node
-                    .name()
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("node {}", node.index()));
-                let mesh_name = mesh
-                    .name()
-                    .map(str::to_string)
-                    .unwrap_or_else(|| format!("mesh {}", mesh.index()));
-                let mut m = Mesh::new(
-                    format!("{node_name}/{mesh_name}"),
-                    positions.clone(),
-                    indices.clone(),
-                );
-                m.transform = Affine3A::from_mat4(world);
-                self.out.push(m);
-            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.instance(&node, world)?;
+            let children: Vec<gltf::Node> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
         }
-        on_path[node.index()] = true;
-        for child in node.children() {
-            self.visit(&child, world, on_path)?;
+        Ok(())
+    }
+
+    /// Adds the node's mesh, if any, as one [`Mesh`] with the node's world transform.
+    fn instance(&mut self, node: &gltf::Node, world: Mat4) -> Result<()> {
+        let Some(mesh) = node.mesh() else {
+            return Ok(());
+        };
+        if !self.cache.contains_key(&mesh.index()) {
+            let decoded = self.decode_mesh(&mesh)?;
+            self.cache.insert(mesh.index(), decoded);
         }
-        on_path[node.index()] = false;
+        let (positions, indices) = &self.cache[&mesh.index()];
+        if !indices.is_empty() {
+            let node_name = node
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("node {}", node.index()));
+            let mesh_name = mesh
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("mesh {}", mesh.index()));
+            let mut m = Mesh::new(
+                format!("{node_name}/{mesh_name}"),
+                positions.clone(),
+                indices.clone(),
+            );
+            m.transform = Affine3A::from_mat4(world);
+            self.out.push(m);
+        }
         Ok(())
     }
 
@@ -294,7 +320,10 @@ impl Builder<'_> {
         let mut tris = Vec::new();
         for prim in mesh.primitives() {
             let mode = prim.mode();
-            if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
                 continue;
             }
             let place = |what: &str| {
@@ -322,7 +351,7 @@ impl Builder<'_> {
             let b = base as u32;
             match mode {
                 Mode::Triangles => {
-                    if n % 3 != 0 {
+                    if !n.is_multiple_of(3) {
                         return Err(Error::parse(
                             self.file,
                             place(""),
@@ -435,7 +464,11 @@ impl Builder<'_> {
         let place = format!("accessors[{}]", acc.index());
         if count == 0 {
             // The spec's minimum; `gltf` 1.4 does not validate it (and its own reader underflows).
-            return Err(Error::parse(self.file, place, "count is 0 (glTF requires at least 1)"));
+            return Err(Error::parse(
+                self.file,
+                place,
+                "count is 0 (glTF requires at least 1)",
+            ));
         }
         let mut elems: Vec<Elem> = match acc.view() {
             Some(view) => {
@@ -444,6 +477,19 @@ impl Builder<'_> {
             }
             // Sparse accessor without a view: base values are zeros.
             None => {
+                // Nothing in the file backs `count` here, so bound it by the file's data: a
+                // hostile count must be an error, not a multi-gigabyte allocation.
+                let data: usize = self.buffers.iter().map(|b| b.len()).sum();
+                let limit = data.saturating_mul(16).saturating_add(1 << 24);
+                if count.saturating_mul(elem) > limit {
+                    return Err(Error::parse(
+                        self.file,
+                        place,
+                        format!(
+                            "sparse accessor without bufferView has count {count}, implausibly large for {data} bytes of buffers"
+                        ),
+                    ));
+                }
                 const ZEROS: [u8; 16] = [0; 16];
                 vec![
                     Elem {
@@ -474,7 +520,10 @@ impl Builder<'_> {
                     let e = is.get(k);
                     return Err(Error::parse(
                         self.file,
-                        format!("{place}, sparse index {k} (buffer {}, byte {})", e.buffer, e.offset),
+                        format!(
+                            "{place}, sparse index {k} (buffer {}, byte {})",
+                            e.buffer, e.offset
+                        ),
                         format!("sparse index {target} out of range (count {count})"),
                     ));
                 }

@@ -38,6 +38,9 @@ use std::borrow::Cow;
 /// Parses OBJ bytes into meshes, one per tobj model (see the module doc).
 pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
     let bytes = prepass(bytes, file)?;
+    // `..Default::default()` covers tobj's feature-gated fields (merging, reordering) should
+    // another crate in the build enable those features.
+    #[allow(clippy::needless_update)]
     let opts = tobj::LoadOptions {
         single_index: false,
         triangulate: false,
@@ -195,16 +198,15 @@ fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<Cow<'a, [u8]>> {
                     return Err(at("face without vertices".into()));
                 }
             }
-            "usemtl" => {
-                // tobj needs a name after a single space.
+            // tobj needs a name after a single space.
+            "usemtl"
                 if line
                     .split_once(' ')
                     .map(|(_, n)| n.trim())
                     .unwrap_or("")
-                    .is_empty()
-                {
-                    return Err(at("usemtl without a material name".into()));
-                }
+                    .is_empty() =>
+            {
+                return Err(at("usemtl without a material name".into()));
             }
             _ => {}
         }

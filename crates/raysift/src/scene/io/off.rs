@@ -94,7 +94,10 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
         count(ne, "edge")?;
     }
     if nv > u32::MAX as usize {
-        return Err(at(cl, format!("{nv} vertices; at most {} are supported", u32::MAX)));
+        return Err(at(
+            cl,
+            format!("{nv} vertices; at most {} are supported", u32::MAX),
+        ));
     }
 
     // Cap reservations by what the text could hold (a hostile count must not allocate GBs).
@@ -109,9 +112,9 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
         let mut xyz = [0f32; 3];
         let mut toks = l.split_ascii_whitespace();
         for (a, c) in xyz.iter_mut().enumerate() {
-            let t = toks.next().ok_or_else(|| {
-                at(ln, format!("vertex {i}: expected 3 coordinates, found {a}"))
-            })?;
+            let t = toks
+                .next()
+                .ok_or_else(|| at(ln, format!("vertex {i}: expected 3 coordinates, found {a}")))?;
             *c = t
                 .parse()
                 .map_err(|_| at(ln, format!("vertex {i}: bad number {t:?}")))?;
@@ -165,7 +168,10 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
         // Anything after the indices is a face colour; it must be numeric.
         for t in toks {
             if t.parse::<f64>().is_err() {
-                return Err(at(ln, format!("face {f}: bad number {t:?} after the indices")));
+                return Err(at(
+                    ln,
+                    format!("face {f}: bad number {t:?} after the indices"),
+                ));
             }
         }
         if face.len() >= 3 {

@@ -118,7 +118,10 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
     if vertex_count > u32::MAX as usize {
         return Err(err(
             "header".into(),
-            format!("{vertex_count} vertices; at most {} are supported", u32::MAX),
+            format!(
+                "{vertex_count} vertices; at most {} are supported",
+                u32::MAX
+            ),
         ));
     }
     let mut out = Out {
@@ -336,7 +339,11 @@ fn classify(elements: &[Element], file: &str) -> Result<Vec<Kind>> {
         kinds.push(kind);
     }
     if have_face && !have_vertex {
-        return Err(Error::parse(file, "header", "face element but no vertex element"));
+        return Err(Error::parse(
+            file,
+            "header",
+            "face element but no vertex element",
+        ));
     }
     Ok(kinds)
 }
@@ -431,7 +438,10 @@ fn read_ascii(
                                     Error::parse(
                                         file,
                                         place(),
-                                        format!("vertex {i}: bad number {:?} for {pname}", short(tok)),
+                                        format!(
+                                            "vertex {i}: bad number {:?} for {pname}",
+                                            short(tok)
+                                        ),
                                     )
                                 })?;
                                 xyz[a] = v;
