@@ -13,10 +13,10 @@
 //! equal); below depth [`MAX_SAH_DEPTH`] only median splits are used, so the tree depth stays
 //! below [`MAX_DEPTH`] whatever the input.
 
-use super::{Config, Node};
+use super::{Config, Node, NodePair};
 use crate::geom::Aabb;
 use crate::scene::TriangleSoup;
-use glam::Vec3;
+use glam::Vec4;
 use rayon::prelude::*;
 
 /// Depth below which SAH splits are allowed; deeper nodes are split at the object median,
@@ -28,27 +28,81 @@ pub const MAX_SAH_DEPTH: usize = 64;
 pub const MAX_DEPTH: usize = MAX_SAH_DEPTH + 34;
 
 /// Most bins a [`Config`] may ask for.
-pub const MAX_BINS: usize = 64;
+pub const MAX_BINS: usize = 32;
 
-/// A triangle during the build: its box and id (28 bytes; sorted in place).
-#[derive(Clone, Copy, Debug)]
-struct PrimRef {
-    min: Vec3,
-    max: Vec3,
-    id: u32,
+/// A box in SIMD registers (`w` lanes unused), the build's working type.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Box4 {
+    min: Vec4,
+    max: Vec4,
 }
 
-impl PrimRef {
-    /// Twice the box centre (`min + max`): the halving is skipped since only comparisons and
-    /// bin positions relative to the (equally doubled) centroid bounds are needed.
+impl Box4 {
+    const EMPTY: Box4 = Box4 {
+        min: Vec4::INFINITY,
+        max: Vec4::NEG_INFINITY,
+    };
+
     #[inline(always)]
-    fn centroid2(&self) -> Vec3 {
-        self.min + self.max
+    fn union(self, o: Box4) -> Box4 {
+        Box4 {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    #[inline(always)]
+    fn grow(self, p: Vec4) -> Box4 {
+        Box4 {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb::new(self.min.truncate(), self.max.truncate())
+    }
+
+    /// Surface area (0 when empty), as [`Aabb::surface_area`].
+    #[inline(always)]
+    fn area(self) -> f32 {
+        let e = self.max - self.min;
+        if !(e.x >= 0.0 && e.y >= 0.0 && e.z >= 0.0) {
+            return 0.0;
+        }
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 }
 
-/// A tree fragment: either interior nodes built in parallel, or a subtree built sequentially
-/// into its own depth-first node vector (interior offsets relative to the vector's start).
+/// A triangle during the build: its box, with the id's bits in `min.w` (32 bytes; moved in
+/// place by the partitions). The scene guarantees finite coordinates, so the SIMD min/max never
+/// see a NaN in x, y, z; whatever `w` becomes in unions is never read.
+#[derive(Clone, Copy, Debug)]
+struct PrimRef(Box4);
+
+impl PrimRef {
+    fn new(b: Aabb, id: u32) -> Self {
+        PrimRef(Box4 {
+            min: b.min.extend(f32::from_bits(id)),
+            max: b.max.extend(0.0),
+        })
+    }
+
+    #[inline(always)]
+    fn id(&self) -> u32 {
+        self.0.min.w.to_bits()
+    }
+
+    /// Twice the box centre (`min + max`): the halving is skipped since only comparisons and
+    /// bin positions relative to the (equally doubled) centroid bounds are needed.
+    #[inline(always)]
+    fn centroid2(&self) -> Vec4 {
+        self.0.min + self.0.max
+    }
+}
+
+/// A tree fragment: either an interior node built in parallel, or a subtree built sequentially:
+/// its root node plus the pairs below it (interior offsets relative to that vector's start).
 enum Sub {
     Split {
         bounds: Aabb,
@@ -56,19 +110,23 @@ enum Sub {
         left: Box<Sub>,
         right: Box<Sub>,
     },
-    Flat(Vec<Node>),
+    Flat {
+        root: Node,
+        pairs: Vec<NodePair>,
+    },
 }
 
 impl Sub {
-    fn node_count(&self) -> usize {
+    fn pair_count(&self) -> usize {
         match self {
-            Sub::Split { left, right, .. } => 1 + left.node_count() + right.node_count(),
-            Sub::Flat(v) => v.len(),
+            Sub::Split { left, right, .. } => 1 + left.pair_count() + right.pair_count(),
+            Sub::Flat { pairs, .. } => pairs.len(),
         }
     }
 
-    /// Appends this fragment to `out` depth first, rebasing interior offsets.
-    fn flatten(self, out: &mut Vec<Node>) {
+    /// Appends the pairs below this fragment's root to `out` depth first and returns the
+    /// root, its offsets rebased.
+    fn flatten(self, out: &mut Vec<NodePair>) -> Node {
         match self {
             Sub::Split {
                 bounds,
@@ -76,30 +134,33 @@ impl Sub {
                 left,
                 right,
             } => {
-                let i = out.len();
-                out.push(Node::interior(bounds, axis, 0));
-                left.flatten(out);
-                out[i].offset = out.len() as u32;
-                right.flatten(out);
+                let p = out.len();
+                out.push(NodePair::UNUSED);
+                let l = left.flatten(out);
+                let r = right.flatten(out);
+                out[p] = NodePair([l, r]);
+                Node::interior(bounds, axis, p as u32)
             }
-            Sub::Flat(v) => {
+            Sub::Flat { root, pairs } => {
                 let base = out.len() as u32;
-                out.extend(v.into_iter().map(|mut n| {
+                let rebase = |mut n: Node| {
                     if !n.is_leaf() {
                         n.offset += base;
                     }
                     n
-                }));
+                };
+                out.extend(pairs.into_iter().map(|p| NodePair(p.0.map(rebase))));
+                rebase(root)
             }
         }
     }
 }
 
-/// The result of a build: nodes (depth first, root at 0, empty for no triangles) and the
-/// triangle ids in leaf order.
+/// The result of a build: node pairs (pair 0 holds the root in slot 0; empty for no triangles)
+/// and the triangle ids in leaf order.
 pub struct Built {
-    /// Flat nodes.
-    pub nodes: Vec<Node>,
+    /// Node pairs, depth first.
+    pub pairs: Vec<NodePair>,
     /// `ids[k]` is the triangle id stored at leaf position `k`.
     pub ids: Vec<u32>,
 }
@@ -109,74 +170,57 @@ pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
     let n = soup.len();
     if n == 0 {
         return Built {
-            nodes: Vec::new(),
+            pairs: Vec::new(),
             ids: Vec::new(),
         };
     }
     let mut refs: Vec<PrimRef> = (0..n)
         .into_par_iter()
-        .map(|i| {
-            let b = soup.bounds(i);
-            PrimRef {
-                min: b.min,
-                max: b.max,
-                id: i as u32,
-            }
-        })
+        .map(|i| PrimRef::new(soup.bounds(i), i as u32))
         .collect();
     let (bounds, cbounds) = refs.par_chunks(1 << 14).map(|c| bounds_of(c)).reduce(
-        || (Aabb::EMPTY, Aabb::EMPTY),
+        || (Box4::EMPTY, Box4::EMPTY),
         |a, b| (a.0.union(b.0), a.1.union(b.1)),
     );
     let ctx = Ctx { cfg };
     let root = ctx.build_par(&mut refs, 0, 0, bounds, cbounds);
-    let mut nodes = Vec::with_capacity(root.node_count());
-    root.flatten(&mut nodes);
-    let ids = refs.iter().map(|r| r.id).collect();
-    Built { nodes, ids }
+    let mut pairs = Vec::with_capacity(1 + root.pair_count());
+    pairs.push(NodePair::UNUSED);
+    pairs[0].0[0] = root.flatten(&mut pairs);
+    let ids = refs.iter().map(|r| r.id()).collect();
+    Built { pairs, ids }
 }
 
 /// Box of the triangles and box of their (doubled) centroids.
-fn bounds_of(refs: &[PrimRef]) -> (Aabb, Aabb) {
-    let (mut b, mut c) = (Aabb::EMPTY, Aabb::EMPTY);
+fn bounds_of(refs: &[PrimRef]) -> (Box4, Box4) {
+    let (mut b, mut c) = (Box4::EMPTY, Box4::EMPTY);
     for r in refs {
-        b = b.union(Aabb::new(r.min, r.max));
+        b = b.union(r.0);
         c = c.grow(r.centroid2());
     }
     (b, c)
 }
 
-/// One bin: box of its triangles and their count.
-#[derive(Clone, Copy)]
-struct Bin {
-    bounds: Aabb,
-    count: u32,
-}
-
-const EMPTY_BIN: Bin = Bin {
-    bounds: Aabb::EMPTY,
-    count: 0,
-};
-
-/// Bins for the three axes.
+/// Bins for the three axes: box and count of the triangles whose centroid falls in each.
 #[derive(Clone)]
 struct Bins {
-    b: [[Bin; MAX_BINS]; 3],
+    bounds: [[Box4; MAX_BINS]; 3],
+    count: [[u32; MAX_BINS]; 3],
 }
 
 impl Bins {
     fn new() -> Self {
         Self {
-            b: [[EMPTY_BIN; MAX_BINS]; 3],
+            bounds: [[Box4::EMPTY; MAX_BINS]; 3],
+            count: [[0; MAX_BINS]; 3],
         }
     }
 
-    fn merge(mut self, o: &Bins, nbins: usize) -> Self {
+    fn merge(mut self: Box<Self>, o: &Bins, nbins: usize) -> Box<Self> {
         for a in 0..3 {
             for k in 0..nbins {
-                let (x, y) = (&mut self.b[a][k], &o.b[a][k]);
-                x.bounds = x.bounds.union(y.bounds);
-                x.count += y.count;
+                self.bounds[a][k] = self.bounds[a][k].union(o.bounds[a][k]);
+                self.count[a][k] += o.count[a][k];
             }
         }
         self
@@ -187,29 +231,35 @@ impl Bins {
 /// partitioning, so both agree on every triangle's side.
 #[derive(Clone, Copy)]
 struct BinMap {
-    lo: Vec3,
-    scale: Vec3,
-    last: usize,
+    lo: Vec4,
+    scale: Vec4,
+    last: u32,
 }
 
 impl BinMap {
-    fn new(cbounds: Aabb, nbins: usize) -> Self {
-        let ext = cbounds.extent();
+    fn new(cbounds: Box4, nbins: usize) -> Self {
+        let ext = cbounds.max - cbounds.min;
         // Slightly below nbins / extent so the max centroid maps inside the last bin; axes with
         // zero extent get scale 0 (everything in bin 0, never chosen since one side is empty).
         let k = nbins as f32 * (1.0 - 1e-6);
-        let scale = Vec3::select(ext.cmpgt(Vec3::ZERO), Vec3::splat(k) / ext, Vec3::ZERO);
+        let scale = Vec4::select(ext.cmpgt(Vec4::ZERO), Vec4::splat(k) / ext, Vec4::ZERO);
         Self {
             lo: cbounds.min,
             scale,
-            last: nbins - 1,
+            last: nbins as u32 - 1,
         }
     }
 
+    /// Bin indices on the three axes (`w` meaningless).
     #[inline(always)]
-    fn bin(&self, c: Vec3, axis: usize) -> usize {
-        // `as usize` saturates (NaN to 0), and min() keeps rounding at the top inside the range.
-        (((c[axis] - self.lo[axis]) * self.scale[axis]) as usize).min(self.last)
+    fn bins(&self, c: Vec4) -> [usize; 3] {
+        // `as u32` saturates (NaN to 0), and min() keeps rounding at the top inside the range.
+        let t = (c - self.lo) * self.scale;
+        [
+            (t.x as u32).min(self.last) as usize,
+            (t.y as u32).min(self.last) as usize,
+            (t.z as u32).min(self.last) as usize,
+        ]
     }
 }
 
@@ -218,8 +268,8 @@ struct Split {
     axis: usize,
     /// Triangles in bins `<= bin` go left.
     bin: usize,
-    left_bounds: Aabb,
-    right_bounds: Aabb,
+    left_bounds: Box4,
+    right_bounds: Box4,
     left_count: usize,
 }
 
@@ -235,17 +285,30 @@ impl Ctx<'_> {
         refs: &mut [PrimRef],
         first: usize,
         depth: usize,
-        bounds: Aabb,
-        cbounds: Aabb,
+        bounds: Box4,
+        cbounds: Box4,
     ) -> Sub {
         let n = refs.len();
         if n < self.cfg.parallel_threshold.max(2) {
-            let mut out = Vec::with_capacity(2 * n.div_ceil(self.cfg.max_leaf.max(1)));
-            self.build_seq(refs, first, depth, bounds, cbounds, &mut out);
-            return Sub::Flat(out);
+            let mut pairs = Vec::with_capacity(n.div_ceil(self.cfg.max_leaf.max(1)));
+            // One set of bins for the whole sequential subtree, reset per node.
+            let mut scratch = Box::new(Bins::new());
+            let root = self.build_seq(
+                refs,
+                first,
+                depth,
+                bounds,
+                cbounds,
+                &mut pairs,
+                &mut scratch,
+            );
+            return Sub::Flat { root, pairs };
         }
-        match self.split(refs, depth, bounds, cbounds, true) {
-            None => Sub::Flat(vec![Node::leaf(bounds, first as u32, n as u16)]),
+        match self.split(refs, depth, bounds, cbounds, None) {
+            None => Sub::Flat {
+                root: Node::leaf(bounds.aabb(), first as u32, n as u16),
+                pairs: Vec::new(),
+            },
             Some((axis, mid, lb, lc, rb, rc)) => {
                 let (l, r) = refs.split_at_mut(mid);
                 let (left, right) = rayon::join(
@@ -253,7 +316,7 @@ impl Ctx<'_> {
                     || self.build_par(r, first + mid, depth + 1, rb, rc),
                 );
                 Sub::Split {
-                    bounds,
+                    bounds: bounds.aabb(),
                     axis: axis as u8,
                     left: Box::new(left),
                     right: Box::new(right),
@@ -262,30 +325,33 @@ impl Ctx<'_> {
         }
     }
 
-    /// Builds the subtree over `refs` into `out` (offsets relative to `out`'s start).
+    /// Builds the subtree over `refs`, appending the pairs below its root to `out` (offsets
+    /// relative to `out`'s start), and returns the root.
     fn build_seq(
         &self,
         refs: &mut [PrimRef],
         first: usize,
         depth: usize,
-        bounds: Aabb,
-        cbounds: Aabb,
-        out: &mut Vec<Node>,
-    ) {
-        let i = out.len();
-        match self.split(refs, depth, bounds, cbounds, false) {
-            None => out.push(Node::leaf(bounds, first as u32, refs.len() as u16)),
+        bounds: Box4,
+        cbounds: Box4,
+        out: &mut Vec<NodePair>,
+        scratch: &mut Bins,
+    ) -> Node {
+        match self.split(refs, depth, bounds, cbounds, Some(&mut *scratch)) {
+            None => Node::leaf(bounds.aabb(), first as u32, refs.len() as u16),
             Some((axis, mid, lb, lc, rb, rc)) => {
-                out.push(Node::interior(bounds, axis as u8, 0));
+                let p = out.len();
+                out.push(NodePair::UNUSED);
                 let (l, r) = refs.split_at_mut(mid);
-                self.build_seq(l, first, depth + 1, lb, lc, out);
-                out[i].offset = out.len() as u32;
-                self.build_seq(r, first + mid, depth + 1, rb, rc, out);
+                let left = self.build_seq(l, first, depth + 1, lb, lc, out, scratch);
+                let right = self.build_seq(r, first + mid, depth + 1, rb, rc, out, scratch);
+                out[p] = NodePair([left, right]);
+                Node::interior(bounds.aabb(), axis as u8, p as u32)
             }
         }
     }
 
-    /// Decides leaf (`None`) or split; on a split, reorders `refs` so the left child's triangles
+    /// Decides leaf (`None`) or split (binning in parallel when there is no `scratch`); on a split, reorders `refs` so the left child's triangles
     /// come first and returns (axis, left count, left bounds, left centroid bounds, right bounds,
     /// right centroid bounds).
     #[allow(clippy::type_complexity)]
@@ -293,18 +359,18 @@ impl Ctx<'_> {
         &self,
         refs: &mut [PrimRef],
         depth: usize,
-        bounds: Aabb,
-        cbounds: Aabb,
-        parallel: bool,
-    ) -> Option<(usize, usize, Aabb, Aabb, Aabb, Aabb)> {
+        bounds: Box4,
+        cbounds: Box4,
+        scratch: Option<&mut Bins>,
+    ) -> Option<(usize, usize, Box4, Box4, Box4, Box4)> {
         let n = refs.len();
         let cfg = self.cfg;
         if n <= 1 {
             return None;
         }
         let can_leaf = n <= cfg.max_leaf;
-        if depth < MAX_SAH_DEPTH && cbounds.extent().max_element() > 0.0 {
-            if let Some(s) = self.best_split(refs, bounds, cbounds, parallel) {
+        if depth < MAX_SAH_DEPTH && (cbounds.max - cbounds.min).truncate().max_element() > 0.0 {
+            if let Some(s) = self.best_split(refs, bounds, cbounds, scratch) {
                 let (cost, split) = s;
                 let leaf_cost = cfg.intersection_cost * n as f32;
                 if can_leaf && leaf_cost <= cost {
@@ -312,7 +378,7 @@ impl Ctx<'_> {
                 }
                 let map = BinMap::new(cbounds, cfg.bins);
                 let (mid, lc, rc) =
-                    partition(refs, |r| map.bin(r.centroid2(), split.axis) <= split.bin);
+                    partition(refs, |r| map.bins(r.centroid2())[split.axis] <= split.bin);
                 debug_assert_eq!(mid, split.left_count);
                 return Some((
                     split.axis,
@@ -335,75 +401,88 @@ impl Ctx<'_> {
     fn best_split(
         &self,
         refs: &[PrimRef],
-        bounds: Aabb,
-        cbounds: Aabb,
-        parallel: bool,
+        bounds: Box4,
+        cbounds: Box4,
+        scratch: Option<&mut Bins>,
     ) -> Option<(f32, Split)> {
         let nb = self.cfg.bins;
         let map = BinMap::new(cbounds, nb);
-        let fill = |mut bins: Bins, chunk: &[PrimRef]| {
+        // Filled in place: the bins are a few KB, too big to move around per node.
+        let fill = |bins: &mut Bins, chunk: &[PrimRef]| {
             for r in chunk {
-                let c = r.centroid2();
-                let rb = Aabb::new(r.min, r.max);
-                for (a, axis_bins) in bins.b.iter_mut().enumerate() {
-                    let bin = &mut axis_bins[map.bin(c, a)];
-                    bin.bounds = bin.bounds.union(rb);
-                    bin.count += 1;
+                let k = map.bins(r.centroid2());
+                for a in 0..3 {
+                    bins.bounds[a][k[a]] = bins.bounds[a][k[a]].union(r.0);
+                    bins.count[a][k[a]] += 1;
                 }
             }
-            bins
         };
-        let bins = if parallel {
-            refs.par_chunks(1 << 13)
-                .fold(Bins::new, fill)
-                .reduce(Bins::new, |a, b| a.merge(&b, nb))
+        let bins_par;
+        let bins = if let Some(b) = scratch {
+            for a in 0..3 {
+                b.bounds[a][..nb].fill(Box4::EMPTY);
+                b.count[a][..nb].fill(0);
+            }
+            fill(b, refs);
+            &*b
         } else {
-            fill(Bins::new(), refs)
+            bins_par = refs
+                .par_chunks(1 << 13)
+                .map(|c| {
+                    let mut b = Box::new(Bins::new());
+                    fill(&mut b, c);
+                    b
+                })
+                .reduce(|| Box::new(Bins::new()), |a, b| a.merge(&b, nb));
+            &*bins_par
         };
-        let inv_area = 1.0 / bounds.surface_area();
+        let inv_area = 1.0 / bounds.area();
         let mut best: Option<(f32, Split)> = None;
         for a in 0..3 {
             if map.scale[a] == 0.0 {
                 continue;
             }
-            let b = &bins.b[a][..nb];
+            let (bb, bc) = (&bins.bounds[a][..nb], &bins.count[a][..nb]);
             // Right-to-left sweep: area·count of the bins above each boundary.
             let mut right_cost = [0f32; MAX_BINS];
-            let mut acc = Aabb::EMPTY;
+            let mut acc = Box4::EMPTY;
             let mut cnt = 0u32;
             for k in (1..nb).rev() {
-                acc = acc.union(b[k].bounds);
-                cnt += b[k].count;
-                right_cost[k - 1] = acc.surface_area() * cnt as f32;
+                acc = acc.union(bb[k]);
+                cnt += bc[k];
+                right_cost[k - 1] = acc.area() * cnt as f32;
             }
-            let mut acc = Aabb::EMPTY;
+            let mut acc = Box4::EMPTY;
             let mut cnt = 0u32;
             for k in 0..nb - 1 {
-                acc = acc.union(b[k].bounds);
-                cnt += b[k].count;
+                acc = acc.union(bb[k]);
+                cnt += bc[k];
                 if cnt == 0 || cnt as usize == refs.len() {
                     continue;
                 }
                 let cost = self.cfg.traversal_cost
                     + self.cfg.intersection_cost
-                        * (acc.surface_area() * cnt as f32 + right_cost[k])
+                        * (acc.area() * cnt as f32 + right_cost[k])
                         * inv_area;
                 if best.as_ref().is_none_or(|(c, _)| cost < *c) {
-                    let right_bounds = b[k + 1..]
-                        .iter()
-                        .fold(Aabb::EMPTY, |x, y| x.union(y.bounds));
                     best = Some((
                         cost,
                         Split {
                             axis: a,
                             bin: k,
                             left_bounds: acc,
-                            right_bounds,
+                            right_bounds: Box4::EMPTY,
                             left_count: cnt as usize,
                         },
                     ));
                 }
             }
+        }
+        // The right box only for the winner.
+        if let Some((_, s)) = best.as_mut() {
+            s.right_bounds = bins.bounds[s.axis][s.bin + 1..nb]
+                .iter()
+                .fold(Box4::EMPTY, |x, y| x.union(*y));
         }
         // A flat node (zero area, e.g. all triangles in one plane) makes costs NaN or inf: any
         // split found is still valid, so keep it (the leaf test then compares against NaN and
@@ -414,8 +493,8 @@ impl Ctx<'_> {
 
 /// In-place partition: elements for which `left` holds come first. Returns the left count and the
 /// centroid bounds of both sides.
-fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> (usize, Aabb, Aabb) {
-    let (mut lc, mut rc) = (Aabb::EMPTY, Aabb::EMPTY);
+fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> (usize, Box4, Box4) {
+    let (mut lc, mut rc) = (Box4::EMPTY, Box4::EMPTY);
     let mut i = 0;
     let mut j = refs.len();
     while i < j {
@@ -433,10 +512,10 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> (usize, A
 
 /// Object-median split: by centroid along the longest centroid axis, or (all centroids equal)
 /// by position, which always terminates since both halves are non-empty.
-fn median_split(refs: &mut [PrimRef], cbounds: Aabb) -> (usize, usize, Aabb, Aabb, Aabb, Aabb) {
+fn median_split(refs: &mut [PrimRef], cbounds: Box4) -> (usize, usize, Box4, Box4, Box4, Box4) {
     let mid = refs.len() / 2;
-    let axis = cbounds.longest_axis();
-    if cbounds.extent()[axis] > 0.0 {
+    let axis = cbounds.aabb().longest_axis();
+    if (cbounds.max - cbounds.min)[axis] > 0.0 {
         refs.select_nth_unstable_by(mid, |a, b| {
             a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
         });

@@ -228,7 +228,7 @@ fn empty_batch_and_empty_scene() {
     let rays = random_in_box(&Aabb::new(Vec3::splat(-1.0), Vec3::ONE), 100, 1);
     assert_eq!(assert_same(&empty, Config::default(), &rays), 0);
     let (_, bvh) = tracers(&empty, Config::default());
-    assert!(bvh.bvh().nodes.is_empty());
+    assert!(bvh.bvh().pairs.is_empty());
 
     // Before any prepare: every ray misses.
     let fresh = BvhTracer::new(Config::default()).unwrap();
@@ -406,8 +406,8 @@ fn one_triangle_and_stats() {
         .unwrap(),
     );
     let (_, bvh) = tracers(&scene, Config::default());
-    assert_eq!(bvh.bvh().nodes.len(), 1);
-    assert_eq!(bvh.bytes(), 32 + 4 + 36);
+    assert_eq!(bvh.bvh().node_count(), 1);
+    assert_eq!(bvh.bytes(), 64 + 4 + 36);
     let rays = RayBatch::from_rays([
         Ray {
             origin: Vec3::new(0.2, 0.2, 1.0),
@@ -436,7 +436,7 @@ fn build_is_sane_and_counts_work() {
     let scene = Arc::new(procedural::soup(20_000, 3));
     let (_, bvh) = tracers(&scene, Config::default());
     let t = bvh.bvh();
-    assert!(t.nodes.len() < 2 * scene.len());
+    assert!(t.node_count() < 2 * scene.len());
     assert!(t.depth() < 40, "{}", t.depth());
     // A BVH visits a tiny fraction of what brute force does.
     let rays = camera_rays(&scene, 64);
@@ -452,7 +452,7 @@ fn build_is_sane_and_counts_work() {
         },
     )
     .unwrap();
-    assert_eq!(seq.nodes, t.nodes);
+    assert_eq!(seq.pairs, t.pairs);
     assert_eq!(seq.ids, t.ids);
 }
 

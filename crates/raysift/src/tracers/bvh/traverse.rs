@@ -42,34 +42,31 @@ pub(super) fn closest_chunk(
 ) -> Stats {
     let mut c = Counters::default();
     let nrays = range.len();
-    if bvh.nodes.is_empty() {
+    let Some(root) = bvh.root() else {
         return c.stats(nrays);
-    }
-    let nodes = &bvh.nodes[..];
-    let mut stack = [(0u32, 0f32); MAX_DEPTH];
+    };
+    let mut stack = [(root, 0f32); MAX_DEPTH];
     for (k, i) in range.enumerate() {
         let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
         let ray = SlabRay::new(o, d);
         let (mut best_t, mut best_p, mut bu, mut bv) = (rays.tmax[i], MISS, 0.0, 0.0);
         c.ray_box += 1;
-        if ray
-            .entry(nodes[0].min, nodes[0].max, tmin, best_t)
-            .is_none()
-        {
+        if ray.entry(root.min, root.max, tmin, best_t).is_none() {
             continue;
         }
-        let mut node = 0usize;
+        let mut n = root;
         let mut sp = 0usize;
         'walk: loop {
-            let n = &nodes[node];
             if n.is_leaf() {
                 c.leaves += 1;
                 let first = n.offset as usize;
                 let end = first + n.count as usize;
                 c.ray_tri += (end - first) as u64;
-                for (tri, &id) in bvh.tris[first..end].iter().zip(&bvh.ids[first..end]) {
+                for (p, tri) in (first..end).zip(&bvh.tris[first..end]) {
                     if let Some(h) = intersect_triangle(o, d, tri[0], tri[1], tri[2], tmin, best_t)
                     {
+                        // The id is read only on a hit: it lives in another cache line.
+                        let id = bvh.ids[p];
                         if closer(h.t, id, best_t, best_p) {
                             (best_t, best_p, bu, bv) = (h.t, id, h.u, h.v);
                         }
@@ -78,24 +75,23 @@ pub(super) fn closest_chunk(
             } else {
                 c.nodes += 1;
                 c.ray_box += 2;
-                let (l, r) = (node + 1, n.offset as usize);
-                let (nl, nr) = (&nodes[l], &nodes[r]);
-                let el = ray.entry(nl.min, nl.max, tmin, best_t);
-                let er = ray.entry(nr.min, nr.max, tmin, best_t);
+                let [l, r] = bvh.children(n);
+                let el = ray.entry(l.min, l.max, tmin, best_t);
+                let er = ray.entry(r.min, r.max, tmin, best_t);
                 match (el, er) {
                     (Some(a), Some(b)) => {
                         let (near, far, far_t) = if a <= b { (l, r, b) } else { (r, l, a) };
-                        stack[sp] = (far as u32, far_t);
+                        stack[sp] = (far, far_t);
                         sp += 1;
-                        node = near;
+                        n = near;
                         continue 'walk;
                     }
                     (Some(_), None) => {
-                        node = l;
+                        n = l;
                         continue 'walk;
                     }
                     (None, Some(_)) => {
-                        node = r;
+                        n = r;
                         continue 'walk;
                     }
                     (None, None) => {}
@@ -109,7 +105,7 @@ pub(super) fn closest_chunk(
                 sp -= 1;
                 let (next, entry) = stack[sp];
                 if entry <= best_t {
-                    node = next as usize;
+                    n = next;
                     continue 'walk;
                 }
             }
@@ -130,22 +126,20 @@ pub(super) fn occluded_chunk(
 ) -> Stats {
     let mut c = Counters::default();
     let nrays = range.len();
-    if bvh.nodes.is_empty() {
+    let Some(root) = bvh.root() else {
         return c.stats(nrays);
-    }
-    let nodes = &bvh.nodes[..];
-    let mut stack = [0u32; MAX_DEPTH];
+    };
+    let mut stack = [root; MAX_DEPTH];
     for (k, i) in range.enumerate() {
         let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
         let ray = SlabRay::new(o, d);
         c.ray_box += 1;
-        if ray.entry(nodes[0].min, nodes[0].max, tmin, tmax).is_none() {
+        if ray.entry(root.min, root.max, tmin, tmax).is_none() {
             continue;
         }
-        let mut node = 0usize;
+        let mut n = root;
         let mut sp = 0usize;
         'walk: loop {
-            let n = &nodes[node];
             if n.is_leaf() {
                 c.leaves += 1;
                 let first = n.offset as usize;
@@ -159,25 +153,24 @@ pub(super) fn occluded_chunk(
             } else {
                 c.nodes += 1;
                 c.ray_box += 2;
-                let (l, r) = (node + 1, n.offset as usize);
-                let (nl, nr) = (&nodes[l], &nodes[r]);
-                let el = ray.entry(nl.min, nl.max, tmin, tmax);
-                let er = ray.entry(nr.min, nr.max, tmin, tmax);
+                let [l, r] = bvh.children(n);
+                let el = ray.entry(l.min, l.max, tmin, tmax);
+                let er = ray.entry(r.min, r.max, tmin, tmax);
                 // Near first still pays for any-hit: the near child is likelier to block.
                 match (el, er) {
                     (Some(a), Some(b)) => {
                         let (near, far) = if a <= b { (l, r) } else { (r, l) };
-                        stack[sp] = far as u32;
+                        stack[sp] = far;
                         sp += 1;
-                        node = near;
+                        n = near;
                         continue 'walk;
                     }
                     (Some(_), None) => {
-                        node = l;
+                        n = l;
                         continue 'walk;
                     }
                     (None, Some(_)) => {
-                        node = r;
+                        n = r;
                         continue 'walk;
                     }
                     (None, None) => {}
@@ -187,7 +180,7 @@ pub(super) fn occluded_chunk(
                 break;
             }
             sp -= 1;
-            node = stack[sp] as usize;
+            n = stack[sp];
         }
     }
     c.stats(nrays)
