@@ -10,7 +10,7 @@
 //! rays (origins in the scene's box, uniform directions; N = 1M) for closest hit, and the random
 //! rays again for occlusion, in a rayon pool of N threads (default: all cores). Times are the best
 //! of R runs (default 3); counts are per ray. "cpu" is the process's CPU time over the same run
-//! (from /proc, 10 ms ticks), a steadier measure than wall time on a shared machine: Mrays per
+//! (all threads, from /proc), a steadier measure than wall time on a shared machine: Mrays per
 //! CPU-second is the per-thread rate.
 
 use raysift::rays::{generate::random_in_box, Camera};
@@ -118,16 +118,16 @@ fn bench(label: &str, tracer: &dyn Tracer, rays: &RayBatch, repeat: usize, occlu
     );
 }
 
-/// CPU time of the whole process (all threads, user + system) in ms, from `/proc/self/stat`
-/// (Linux; 0 elsewhere).
+/// CPU time of the whole process (all threads) in ms: the sum of every thread's run time in
+/// `/proc/self/task/*/schedstat` (Linux, ns resolution; 0 elsewhere).
 fn cpu_ms() -> f64 {
-    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else {
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
         return 0.0;
     };
-    // Fields after the parenthesised command name: state is field 3, utime 14, stime 15.
-    let rest = s.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
-    // `rest` starts at field 3, so field k is at index k - 3; clock ticks are 100 Hz on Linux.
-    (tick(14 - 3) + tick(15 - 3)) * 10.0
+    let ns: u64 = dir
+        .flatten()
+        .filter_map(|t| std::fs::read_to_string(t.path().join("schedstat")).ok())
+        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .sum();
+    ns as f64 / 1e6
 }

@@ -376,7 +376,7 @@ impl Ctx<'_> {
                 if can_leaf && leaf_cost <= cost {
                     return None;
                 }
-                let map = BinMap::new(cbounds, cfg.bins);
+                let map = BinMap::new(cbounds, cfg.bins.min(n.max(4)));
                 let (mid, lc, rc) =
                     partition(refs, |r| map.bins(r.centroid2())[split.axis] <= split.bin);
                 debug_assert_eq!(mid, split.left_count);
@@ -405,7 +405,9 @@ impl Ctx<'_> {
         cbounds: Box4,
         scratch: Option<&mut Bins>,
     ) -> Option<(f32, Split)> {
-        let nb = self.cfg.bins;
+        // Small nodes get fewer bins (as many as triangles, at least 4): the sweep over empty
+        // bins would cost more than the binning itself.
+        let nb = self.cfg.bins.min(refs.len().max(4));
         let map = BinMap::new(cbounds, nb);
         // Filled in place: the bins are a few KB, too big to move around per node.
         let fill = |bins: &mut Bins, chunk: &[PrimRef]| {
