@@ -178,7 +178,7 @@ pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
         .into_par_iter()
         .map(|i| PrimRef::new(soup.bounds(i), i as u32))
         .collect();
-    let (bounds, cbounds) = refs.par_chunks(1 << 14).map(|c| bounds_of(c)).reduce(
+    let (bounds, cbounds) = refs.par_chunks(1 << 14).map(bounds_of).reduce(
         || (Box4::EMPTY, Box4::EMPTY),
         |a, b| (a.0.union(b.0), a.1.union(b.1)),
     );
@@ -327,6 +327,7 @@ impl Ctx<'_> {
 
     /// Builds the subtree over `refs`, appending the pairs below its root to `out` (offsets
     /// relative to `out`'s start), and returns the root.
+    #[allow(clippy::too_many_arguments)]
     fn build_seq(
         &self,
         refs: &mut [PrimRef],
@@ -413,9 +414,9 @@ impl Ctx<'_> {
         let fill = |bins: &mut Bins, chunk: &[PrimRef]| {
             for r in chunk {
                 let k = map.bins(r.centroid2());
-                for a in 0..3 {
-                    bins.bounds[a][k[a]] = bins.bounds[a][k[a]].union(r.0);
-                    bins.count[a][k[a]] += 1;
+                for (a, &ka) in k.iter().enumerate() {
+                    bins.bounds[a][ka] = bins.bounds[a][ka].union(r.0);
+                    bins.count[a][ka] += 1;
                 }
             }
         };

@@ -90,9 +90,9 @@ impl Config {
                 self.max_leaf
             ));
         }
-        if !(self.traversal_cost >= 0.0 && self.traversal_cost.is_finite())
-            || !(self.intersection_cost > 0.0 && self.intersection_cost.is_finite())
-        {
+        let ok_trav = self.traversal_cost >= 0.0 && self.traversal_cost.is_finite();
+        let ok_isect = self.intersection_cost > 0.0 && self.intersection_cost.is_finite();
+        if !ok_trav || !ok_isect {
             return bad("costs must be finite, traversal >= 0, intersection > 0".into());
         }
         Ok(())
@@ -260,7 +260,8 @@ impl Bvh {
             return 0.0;
         };
         let ra = root.bounds().surface_area() as f64;
-        if !(ra > 0.0) {
+        // Also catches NaN (flat or empty root).
+        if ra.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return 0.0;
         }
         self.nodes()
