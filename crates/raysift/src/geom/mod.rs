@@ -7,11 +7,13 @@
 
 pub mod aabb;
 pub mod shapes;
+pub mod slab;
 pub mod triangle;
 
 pub use aabb::Aabb;
 pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};
+pub use slab::SlabRay;
 pub use triangle::{intersect_triangle, TriHit};
 
 /// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the
