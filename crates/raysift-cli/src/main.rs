@@ -260,7 +260,11 @@ fn main() {
         Err(e) => {
             // Usage errors as one line, like every other error (the full usage is in --help).
             let text = e.render().to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments").trim_start_matches("error: ");
+            let first = text
+                .lines()
+                .next()
+                .unwrap_or("invalid arguments")
+                .trim_start_matches("error: ");
             eprintln!("raysift: error: {first} (see --help)");
             std::process::exit(2);
         }
