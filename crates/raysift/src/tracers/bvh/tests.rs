@@ -465,3 +465,39 @@ fn config_from_options() {
     assert!(crate::tracers::create("bvh", &[("bins".into(), "1".into())]).is_err());
     assert!(crate::tracers::create("bvh", &[("max_leaf".into(), "0".into())]).is_err());
 }
+
+/// `validate()` must be able to fail: corrupt a good tree in each invariant it checks.
+#[test]
+fn validate_catches_corruption() {
+    let scene = Arc::new(procedural::soup(500, 8));
+    let good = Bvh::build(&scene, &small_cfg()).unwrap();
+    good.validate(&scene).unwrap();
+    let leaf_pair = (1..good.pairs.len())
+        .find(|&p| good.pairs[p].0[0].is_leaf())
+        .unwrap();
+
+    let mut b = good.clone();
+    b.pairs[leaf_pair].0[0].max.x -= 1e-3; // leaf box no longer contains its triangles
+    assert!(b.validate(&scene).is_err());
+
+    let mut b = good.clone();
+    b.ids.swap(0, 1); // copies no longer match ids
+    assert!(b.validate(&scene).is_err());
+
+    let mut b = good.clone();
+    b.ids[1] = b.ids[0];
+    b.tris[1] = b.tris[0]; // a triangle twice, another lost
+    assert!(b.validate(&scene).is_err());
+
+    let mut b = good.clone();
+    b.pairs[leaf_pair].0[0].count += 1; // leaf ranges overlap
+    assert!(b.validate(&scene).is_err());
+
+    let mut b = good.clone();
+    b.pairs[0].0[0].offset = good.pairs.len() as u32; // child pair out of range
+    assert!(b.validate(&scene).is_err());
+
+    let mut b = good.clone();
+    b.pairs[0].0[0].min.y += 0.5; // root does not contain its children
+    assert!(b.validate(&scene).is_err());
+}
