@@ -135,8 +135,26 @@ pub fn segment_in_cone(apex: DVec3, axis: DVec3, cos2: f64, p0: DVec3, p1: DVec3
 ///
 /// `near_radius`: boxes within this distance of the apex also count as hit. DACRT's shadow cones
 /// use it because their rays end a few ulps away from the light, not exactly on it.
+///
+/// `reach`: the cone is cut at this distance from the apex (`f32::INFINITY` for none); a box
+/// farther than `reach` from the apex misses. This part is conservative rather than exact (the
+/// box must meet both the cone and the ball of radius `reach`, not their intersection).
 #[inline]
-pub fn cone_box_overlap(apex: Vec3, axis: Vec3, cos2: f64, near_radius: f32, b: &Aabb) -> bool {
+pub fn cone_box_overlap(
+    apex: Vec3,
+    axis: Vec3,
+    cos2: f64,
+    near_radius: f32,
+    reach: f32,
+    b: &Aabb,
+) -> bool {
+    if reach < f32::INFINITY {
+        let q = apex.clamp(b.min, b.max) - apex;
+        // f64: the squared distance must not round below reach².
+        if q.as_dvec3().length_squared() > (reach as f64) * (reach as f64) {
+            return false;
+        }
+    }
     let code = outcode(apex, b);
     if code == 0 {
         return true;
@@ -242,7 +260,14 @@ mod tests {
             )
             .normalize();
             let half: f32 = rng.gen_range(0.001..0.6);
-            let got = cone_box_overlap(apex, axis, (half as f64).cos().powi(2), 0.0, &b);
+            let got = cone_box_overlap(
+                apex,
+                axis,
+                (half as f64).cos().powi(2),
+                0.0,
+                f32::INFINITY,
+                &b,
+            );
             let want = sampled(apex, axis, half, &b, 24);
             // Sampling can only miss overlaps, never invent them.
             if want {
@@ -307,11 +332,11 @@ mod tests {
             let wide = (theta * 1.01).cos().powi(2);
             let narrow = (theta * 0.99).cos().powi(2);
             assert!(
-                cone_box_overlap(apex, axis, wide, 0.0, &b),
+                cone_box_overlap(apex, axis, wide, 0.0, f32::INFINITY, &b),
                 "apex {apex} axis {axis} θ {theta}"
             );
             assert!(
-                !cone_box_overlap(apex, axis, narrow, 0.0, &b),
+                !cone_box_overlap(apex, axis, narrow, 0.0, f32::INFINITY, &b),
                 "apex {apex} axis {axis} θ {theta}"
             );
             codes[code] += 1;
@@ -373,10 +398,35 @@ mod tests {
     #[test]
     fn apex_inside_and_near_radius() {
         let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
-        assert!(cone_box_overlap(Vec3::splat(0.5), Vec3::X, 0.99, 0.0, &b));
+        assert!(cone_box_overlap(
+            Vec3::splat(0.5),
+            Vec3::X,
+            0.99,
+            0.0,
+            f32::INFINITY,
+            &b
+        ));
         // Pointing away, just outside the box: only the near radius keeps it.
         let apex = Vec3::new(1.0 + 1e-4, 0.5, 0.5);
-        assert!(!cone_box_overlap(apex, Vec3::X, 0.99, 0.0, &b));
-        assert!(cone_box_overlap(apex, Vec3::X, 0.99, 1e-3, &b));
+        assert!(!cone_box_overlap(
+            apex,
+            Vec3::X,
+            0.99,
+            0.0,
+            f32::INFINITY,
+            &b
+        ));
+        assert!(cone_box_overlap(
+            apex,
+            Vec3::X,
+            0.99,
+            1e-3,
+            f32::INFINITY,
+            &b
+        ));
+        // Reach: a cone cut short of the box misses it.
+        let apex = Vec3::new(-1.0, 0.5, 0.5);
+        assert!(cone_box_overlap(apex, Vec3::X, 0.99, 0.0, 1.0, &b));
+        assert!(!cone_box_overlap(apex, Vec3::X, 0.99, 0.0, 0.999, &b));
     }
 }

@@ -41,11 +41,11 @@
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
 //! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
 //! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 4·R` (ray indices) and, in packet
-//!   mode, `36` bytes per cone (32 for the cone, 4 for its index), i.e. `36·⌈W/8⌉·(tile rows)`
-//!   for camera rays (`= 0.5625·R` when W and H are multiples of 8 and the bands are whole tile
-//!   rows) and `36·⌈R_task/64⌉` per task for shadow rays.
+//!   mode, `44` bytes per cone (40 for the cone, 4 for its index), i.e. `44·⌈W/8⌉·(tile rows)`
+//!   for camera rays (`= 0.6875·R` when W and H are multiples of 8 and the bands are whole tile
+//!   rows) and `44·⌈R_task/64⌉` per task for shadow rays.
 //!
-//! So with `K` tasks: `a = 24 + 4K` bytes per triangle, `b = 4` (ray modes) or `4.5625` (packet
+//! So with `K` tasks: `a = 24 + 4K` bytes per triangle, `b = 4` (ray modes) or `4.6875` (packet
 //! mode, full tiles), `c = 0`; `Stats::peak_bytes` reports the per-call part. The integration test
 //! `tests/dacrt_memory.rs` checks this with a counting allocator.
 
@@ -101,6 +101,9 @@ pub struct Config {
     pub tasks: usize,
     /// Packets whose cone half-angle exceeds this (degrees) are traced as rays. Default 20.
     pub max_cone_deg: f32,
+    /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
+    /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
+    pub flush_filter: bool,
 }
 
 impl Default for Config {
@@ -116,6 +119,7 @@ impl Default for Config {
             max_depth: 64,
             tasks: 0,
             max_cone_deg: 20.0,
+            flush_filter: true,
         }
     }
 }
@@ -218,12 +222,15 @@ impl Order {
     }
 }
 
-/// One conic packet: 32 bytes.
+/// One conic packet: 40 bytes.
 #[derive(Clone, Copy, Debug, Default)]
 struct PackedCone {
     axis: Vec3,
     /// Boxes this close to the apex count as hit (shadow cones; 0 for camera cones).
     near: f32,
+    /// The packet's rays lie within this distance of the apex (shadow cones: their origins;
+    /// +inf for camera cones).
+    reach: f32,
     /// cos² of the half-angle, in f64 (f32 cannot resolve the angular margin near 1).
     cos2: f64,
     /// Termination bits, one per ray of the packet.
@@ -544,7 +551,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 }
                 self.st.ray_tri += nt as u64;
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
-                self.terminate && bp != MISS && self.final_hit(cell, o, d, tmin, bt, &ord)
+                self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
             };
             if done {
                 self.ray_idx.swap(p, self.rterm);
@@ -554,18 +561,13 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
     }
 
-    /// True when the hit at `bt` is final: inside this leaf cell (with a margin) and every
-    /// earlier stretch of the ray was visited ([`Order`]).
+    /// True when the hit at `bt` is final: the hit point lies inside this leaf cell, away from
+    /// its faces by a margin (so no triangle of a later cell can tie it after rounding), and
+    /// every earlier stretch of the ray was visited ([`Order`]). Inside the (convex) cell means
+    /// `t_enter ≤ bt ≤ t_exit`; testing the point costs no ray/box test (as in the paper, whose
+    /// packet mode reports almost no ray/box tests).
     #[inline]
-    fn final_hit(
-        &mut self,
-        cell: &Aabb,
-        o: Vec3,
-        d: Vec3,
-        tmin: f32,
-        bt: f32,
-        ord: &Order,
-    ) -> bool {
+    fn final_hit(cell: &Aabb, o: Vec3, d: Vec3, tmin: f32, bt: f32, ord: &Order) -> bool {
         let (start, err) = if tmin == 0.0 {
             (o, 0.0)
         } else {
@@ -578,11 +580,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         if !ord.allows(start, err, d) {
             return false;
         }
-        self.st.ray_box += 1;
-        match cell.ray_interval(o, Vec3::ONE / d, tmin, f32::INFINITY) {
-            Some((_, tx)) => bt + (bt.abs() + tx.abs()) * TERM_GAP < tx,
-            None => false,
-        }
+        let step = d * bt;
+        let p = o + step;
+        // Per axis: rounding of p, plus a gap of 2·TERM_GAP·|bt| in t along that axis.
+        let m = (o.abs() + step.abs()) * (8.0 * f32::EPSILON) + step.abs() * (2.0 * TERM_GAP);
+        (p - m).cmpge(cell.min).all() && (p + m).cmple(cell.max).all()
     }
 
     /// In-place filter of the active cones `cone_idx[cterm..cend]` against `b`.
@@ -590,7 +592,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut k = self.cterm;
         for p in self.cterm..cend {
             let c = &self.cones[self.cone_idx[p] as usize];
-            if cone_box_overlap(self.apex, c.axis, c.cos2, c.near, b) {
+            if cone_box_overlap(self.apex, c.axis, c.cos2, c.near, c.reach, b) {
                 self.cone_idx.swap(k, p);
                 k += 1;
             }
@@ -644,28 +646,29 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         for q in self.cterm..cend {
             let c = self.cone_idx[q] as usize;
             let done = self.cones[c].done;
+            let filter = self.cfg.flush_filter;
             packets.for_each(c, |k, bit| {
+                // Live rays only, and (optionally) only those entering the cell; unfiltered
+                // rays are still correct (Algorithm 1 filters them if it divides further, and
+                // a naive leaf is correct for any ray).
                 if done & (1u64 << bit) != 0 {
                     return;
                 }
-                let i = self.base + k;
-                self.st.ray_box += 1;
-                if cell
-                    .ray_interval(
-                        self.rays.origin(i),
-                        Vec3::ONE / self.rays.dir(i),
-                        self.rays.tmin[i],
-                        if ANY {
-                            self.rays.tmax[i]
-                        } else {
-                            widen(self.t[k])
-                        },
-                    )
-                    .is_some()
-                {
-                    self.ray_idx[rend] = k as u32;
-                    rend += 1;
+                if filter {
+                    let i = self.base + k;
+                    self.st.ray_box += 1;
+                    let cut = if ANY {
+                        self.rays.tmax[i]
+                    } else {
+                        widen(self.t[k])
+                    };
+                    let (o, inv) = (self.rays.origin(i), Vec3::ONE / self.rays.dir(i));
+                    if cell.ray_interval(o, inv, self.rays.tmin[i], cut).is_none() {
+                        return;
+                    }
                 }
+                self.ray_idx[rend] = k as u32;
+                rend += 1;
             });
         }
         self.ray_rec(cell, nt, rend, depth, ord);
@@ -691,6 +694,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let base = self.base;
         let mut ok = true;
         let mut far = 0.0f64;
+        let mut reach = 0.0f64;
         let shadow = matches!(self.packets, Packets::Runs { .. });
         self.packets.for_each(c, |k, _| {
             let i = base + k;
@@ -699,6 +703,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 // Segment o → o + d with t in [0, 1] must end (up to rounding) at the light.
                 ok &= rays.tmin[i] >= 0.0 && rays.tmax[i] <= 1.0 && o != apex;
                 far = far.max((o.as_dvec3() + d.as_dvec3() - apex.as_dvec3()).length());
+                reach = reach.max((o.as_dvec3() - apex.as_dvec3()).length());
             } else {
                 ok &= o == apex && rays.tmin[i] >= 0.0;
             }
@@ -723,7 +728,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             n += 1;
         });
         let cone = Cone::around_directions(apex, buf[..n].iter().copied())?;
-        let (mut half, mut near) = (cone.half_angle, 0.0f32);
+        let (mut half, mut near, mut cut) = (cone.half_angle, 0.0f32, f32::INFINITY);
         if shadow {
             // The rays end `far` away from the light, not on it: points farther than
             // `near = 2^14·far` from the light deviate from the ideal direction by less than
@@ -731,6 +736,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let scale = apex.abs().max_element() as f64 * (f32::EPSILON as f64);
             near = ((far + 4.0 * scale) * 16384.0) as f32;
             half += 2.0 / 16384.0;
+            // Segments end at their origins: nothing beyond `reach` (+ the rounding `far`).
+            cut = ((reach + 2.0 * far) * (1.0 + 1e-6)) as f32 + near;
         }
         if !(half <= max_angle) || half >= std::f32::consts::FRAC_PI_2 {
             return None;
@@ -739,6 +746,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         Some(PackedCone {
             axis: cone.axis,
             near,
+            reach: cut,
             cos2: cos * cos,
             done: 0,
         })
@@ -864,7 +872,7 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes = (4 * ntri + 4 * len + 36 * ncones) as u64;
+        task.st.peak_bytes = (4 * ntri + 4 * len + 44 * ncones) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
