@@ -261,22 +261,25 @@ impl Packets {
         }
     }
 
-    /// Local ray `k` → (packet, bit).
+    /// Local ray `k` → (packet, bit). `perm` is the shadow-ray order (see [`Task::perm`]).
     #[inline]
-    fn of(&self, k: usize) -> (usize, u32) {
+    fn of(&self, k: usize, perm: &[u64]) -> (usize, u32) {
         match *self {
             Packets::None => (0, 0),
             Packets::Tiles { width, tw, .. } => {
                 let (y, x) = (k / width, k % width);
                 ((y / 8) * tw + x / 8, ((y % 8) * 8 + x % 8) as u32)
             }
-            Packets::Runs { .. } => (k / 64, (k % 64) as u32),
+            Packets::Runs { .. } => {
+                let j = (perm[k] >> 32) as usize;
+                (j / 64, (j % 64) as u32)
+            }
         }
     }
 
     /// Calls `f(k, bit)` for every ray of packet `c`.
     #[inline]
-    fn for_each(&self, c: usize, mut f: impl FnMut(usize, u32)) {
+    fn for_each(&self, c: usize, perm: &[u64], mut f: impl FnMut(usize, u32)) {
         match *self {
             Packets::None => {}
             Packets::Tiles { width, rows, tw } => {
@@ -288,17 +291,17 @@ impl Packets {
                 }
             }
             Packets::Runs { len } => {
-                for k in c * 64..(c * 64 + 64).min(len) {
-                    f(k, (k % 64) as u32);
+                for j in c * 64..(c * 64 + 64).min(len) {
+                    f(perm[j] as u32 as usize, (j % 64) as u32);
                 }
             }
         }
     }
 
     /// Bits of the rays packet `c` has.
-    fn full_mask(&self, c: usize) -> u64 {
+    fn full_mask(&self, c: usize, perm: &[u64]) -> u64 {
         let mut m = 0u64;
-        self.for_each(c, |_, b| m |= 1 << b);
+        self.for_each(c, perm, |_, b| m |= 1 << b);
         m
     }
 }
@@ -350,6 +353,10 @@ struct Task<'a, const ANY: bool> {
     apex: Vec3,
     cones: Vec<PackedCone>,
     cone_idx: Vec<u32>,
+    /// Shadow packets: rays grouped by a Morton code of their origin so that 64 consecutive
+    /// slots are close together (compact cones). Entry `x`: low 32 bits = the ray in slot `x`,
+    /// high 32 bits = the slot of ray `x`. Empty otherwise.
+    perm: Vec<u64>,
     /// Terminated-cone pivot.
     cterm: usize,
     st: Stats,
@@ -647,7 +654,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let c = self.cone_idx[q] as usize;
             let done = self.cones[c].done;
             let filter = self.cfg.flush_filter;
-            packets.for_each(c, |k, bit| {
+            let perm = std::mem::take(&mut self.perm);
+            packets.for_each(c, &perm, |k, bit| {
                 // Live rays only, and (optionally) only those entering the cell; unfiltered
                 // rays are still correct (Algorithm 1 filters them if it divides further, and
                 // a naive leaf is correct for any ray).
@@ -670,16 +678,17 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 self.ray_idx[rend] = k as u32;
                 rend += 1;
             });
+            self.perm = perm;
         }
         self.ray_rec(cell, nt, rend, depth, ord);
         for p in start..self.rterm {
-            let (c, bit) = packets.of(self.ray_idx[p] as usize);
+            let (c, bit) = packets.of(self.ray_idx[p] as usize, &self.perm);
             self.cones[c].done |= 1u64 << bit;
         }
         let mut q = self.cterm;
         while q < cend {
             let c = self.cone_idx[q] as usize;
-            if self.cones[c].done == packets.full_mask(c) {
+            if self.cones[c].done == packets.full_mask(c, &self.perm) {
                 self.cone_idx.swap(q, self.cterm);
                 self.cterm += 1;
             }
@@ -696,7 +705,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut far = 0.0f64;
         let mut reach = 0.0f64;
         let shadow = matches!(self.packets, Packets::Runs { .. });
-        self.packets.for_each(c, |k, _| {
+        self.packets.for_each(c, &self.perm, |k, _| {
             let i = base + k;
             let (o, d) = (rays.origin(i), rays.dir(i));
             if shadow {
@@ -723,7 +732,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         // Collect the packet's directions without allocating: iterate twice via for_each.
         let mut buf = [Vec3::ZERO; 64];
         let mut n = 0;
-        self.packets.for_each(c, |k, _| {
+        self.packets.for_each(c, &self.perm, |k, _| {
             buf[n] = dirs(k);
             n += 1;
         });
@@ -751,6 +760,35 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             done: 0,
         })
     }
+}
+
+/// The shadow-packet order of rays `range` (see [`Task::perm`]): sorted by a 30-bit Morton code
+/// of the origin in `bounds` (in place, no further allocation), then each entry's high half is
+/// overwritten with the inverse permutation.
+fn morton_order(rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64> {
+    fn spread(x: u32) -> u64 {
+        let mut x = (x & 0x3ff) as u64;
+        x = (x | x << 16) & 0x0300_00ff;
+        x = (x | x << 8) & 0x0300_f00f;
+        x = (x | x << 4) & 0x030c_30c3;
+        (x | x << 2) & 0x0924_9249
+    }
+    let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
+    let mut v: Vec<u64> = range
+        .clone()
+        .enumerate()
+        .map(|(k, i)| {
+            let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
+            let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
+            code << 32 | k as u64
+        })
+        .collect();
+    v.sort_unstable();
+    for j in 0..v.len() {
+        let k = v[j] as u32 as usize;
+        v[k] = (v[k] & 0xffff_ffff) | (j as u64) << 32;
+    }
+    v
 }
 
 /// The low or high half of `cell` at `split` on `axis` (both closed, sharing the plane).
@@ -868,11 +906,15 @@ impl Dacrt {
             apex,
             cones: vec![PackedCone::default(); ncones],
             cone_idx: Vec::with_capacity(ncones),
+            perm: match packets {
+                Packets::Runs { .. } => morton_order(rays, range.clone(), &scene.bounds()),
+                _ => Vec::new(),
+            },
             cterm: 0,
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes = (4 * ntri + 4 * len + 44 * ncones) as u64;
+        task.st.peak_bytes = (4 * ntri + 4 * len + 44 * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
@@ -888,7 +930,7 @@ impl Dacrt {
                     task.cones[c] = cone;
                     task.cone_idx.push(c as u32);
                 }
-                None => packets.for_each(c, |k, _| {
+                None => packets.for_each(c, &task.perm, |k, _| {
                     task.ray_idx[rend] = k as u32;
                     rend += 1;
                 }),
