@@ -291,8 +291,9 @@ impl Packets {
                 }
             }
             Packets::Runs { len } => {
-                for j in c * 64..(c * 64 + 64).min(len) {
-                    f(perm[j] as u32 as usize, (j % 64) as u32);
+                let (a, b) = (c * 64, (c * 64 + 64).min(len));
+                for (bit, &e) in perm[a..b].iter().enumerate() {
+                    f(e as u32 as usize, bit as u32);
                 }
             }
         }
@@ -748,7 +749,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             // Segments end at their origins: nothing beyond `reach` (+ the rounding `far`).
             cut = ((reach + 2.0 * far) * (1.0 + 1e-6)) as f32 + near;
         }
-        if !(half <= max_angle) || half >= std::f32::consts::FRAC_PI_2 {
+        // NaN angles are refused too.
+        if half.is_nan() || half > max_angle || half >= std::f32::consts::FRAC_PI_2 {
             return None;
         }
         let cos = (half as f64).cos();
