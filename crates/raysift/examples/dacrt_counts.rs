@@ -82,6 +82,10 @@ fn main() {
     let (t, p) = make("random");
     let (_, s) = t.intersect_timed(&rays);
     cols.push(("Random mode", s.clone(), p.prepare_ms + s.trace_ms));
+    // Incoherent rays: as many uniformly random rays in the scene box, random mode (auto).
+    let random = raysift::rays::generate::random_in_box(&b, rays.len(), 1);
+    let (_, s) = t.intersect_timed(&random);
+    cols.push(("Random rays", s.clone(), p.prepare_ms + s.trace_ms));
 
     println!(
         "{:<16} {:>10} {:>10} {:>10} {:>11} {:>11} {:>10} {:>10} {:>10}",
@@ -108,13 +112,15 @@ fn main() {
         for i in (0..rays.len()).step_by(64) {
             sub.push(rays.get(i));
         }
+        let n_tris = scene.len();
         let mut n = tracers::create("naive", &[]).unwrap();
         n.prepare(scene.clone()).unwrap();
         let (_, s) = n.intersect_timed(&sub);
         println!(
-            "naive: {:.1} ms for {} rays, about {:.0} ms for all {} (x64)",
+            "naive: {:.1} ms for {} rays x {} triangles, about {:.0} ms for all {} camera rays (x64)",
             s.trace_ms,
             sub.len(),
+            n_tris,
             s.trace_ms * 64.0,
             rays.len()
         );

@@ -4,7 +4,7 @@
 //! different scenes of equal size (a random soup and an icosphere), in every mode.
 
 use raysift::rays::generate::random_in_box;
-use raysift::rays::Camera;
+use raysift::rays::{Camera, RayLayout};
 use raysift::scene::{procedural, Scene};
 use raysift::{tracers, HitBatch, RayBatch};
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -101,19 +101,40 @@ fn memory_is_a_deterministic_linear_function() {
         for scene in [&soup, &sphere] {
             let cam = Camera::framing(&scene.bounds(), 45.0, w as f32 / h as f32).rays(w, h);
             let random = random_in_box(&scene.bounds(), r, 5);
+            // Shadow rays to a point light (segments ending on it).
+            let light = scene.bounds().max + glam::Vec3::ONE;
+            let mut shadow = random.clone();
+            for i in 0..r {
+                let d = light - shadow.origin(i);
+                (shadow.dx[i], shadow.dy[i], shadow.dz[i]) = (d.x, d.y, d.z);
+                shadow.tmax[i] = 1.0;
+            }
+            shadow.layout = RayLayout::ToPoint { target: light };
             for (mode, rays) in [
                 ("ray", &cam),
                 ("random", &random),
                 ("packet", &cam),
                 ("auto", &random),
+                ("shadow", &shadow),
             ] {
-                let c = run(scene, rays, mode, tasks);
+                let c = run(
+                    scene,
+                    rays,
+                    if mode == "shadow" { "packet" } else { mode },
+                    tasks,
+                );
                 // Held between calls: six f32 lists of T.
                 assert_eq!(c.prepare, 24 * t, "prepare {mode}");
-                // Per call: K triangle index lists, one ray index list, and for camera packets
-                // 44 bytes per 8×8 tile (W, H multiples of 8: R/64 tiles).
-                let cones = if mode == "packet" { r / 64 } else { 0 };
-                let want = 4 * t * tasks + 4 * r + 44 * cones;
+                // Per call: K triangle index lists, one ray index list, and for packets 44
+                // bytes per 8×8 tile or per 64 shadow rays (here R/64 either way), plus the
+                // shadow rays' 8-byte Morton order.
+                let cones = if mode == "packet" || mode == "shadow" {
+                    r / 64
+                } else {
+                    0
+                };
+                let order = if mode == "shadow" { 8 * r } else { 0 };
+                let want = 4 * t * tasks + 4 * r + 44 * cones + order;
                 assert_eq!(c.intersect.0, want, "intersect {mode} tasks {tasks}");
                 assert_eq!(c.occluded.0, want, "occluded {mode} tasks {tasks}");
                 assert!(c.intersect.1 <= want && c.occluded.1 <= want);

@@ -43,11 +43,14 @@
 //! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 4·R` (ray indices) and, in packet
 //!   mode, `44` bytes per cone (40 for the cone, 4 for its index), i.e. `44·⌈W/8⌉·(tile rows)`
 //!   for camera rays (`= 0.6875·R` when W and H are multiples of 8 and the bands are whole tile
-//!   rows) and `44·⌈R_task/64⌉` per task for shadow rays.
+//!   rows) and, for shadow rays, `44·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
+//!   rays that groups them into compact packets).
 //!
-//! So with `K` tasks: `a = 24 + 4K` bytes per triangle, `b = 4` (ray modes) or `4.6875` (packet
-//! mode, full tiles), `c = 0`; `Stats::peak_bytes` reports the per-call part. The integration test
-//! `tests/dacrt_memory.rs` checks this with a counting allocator.
+//! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
+//! `b = 4` (ray and random modes), `4.6875` (camera packets, full tiles), `12.6875` (shadow
+//! packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
+//! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
+//! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
 
 use crate::error::Result;
 use crate::geom::{cone_box_overlap, intersect_triangle, tri_box_edge_axes, Aabb, Cone};
