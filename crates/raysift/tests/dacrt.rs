@@ -112,7 +112,7 @@ fn merge(a: &Scene, b: &Scene) -> Scene {
 }
 
 #[test]
-fn soup_camera_shadow_and_random() {
+fn dacrt_soup_camera_shadow_and_random() {
     let s = procedural::soup(3000, 5);
     let cam = Camera::framing(&s.bounds(), 45.0, 1.5);
     check_camera(s.clone(), cam, 72, 48, Vec3::new(0.3, 3.0, 2.0), "soup");
@@ -122,7 +122,7 @@ fn soup_camera_shadow_and_random() {
 }
 
 #[test]
-fn icosphere_outside_and_inside() {
+fn dacrt_icosphere_outside_and_inside() {
     let s = procedural::icosphere(5000);
     let cam = Camera::framing(&s.bounds(), 45.0, 1.0);
     check_camera(
@@ -144,7 +144,7 @@ fn icosphere_outside_and_inside() {
 }
 
 #[test]
-fn cornell_outside_and_inside() {
+fn dacrt_cornell_outside_and_inside() {
     let s = procedural::cornell();
     let b = s.bounds();
     let cam = Camera::framing(&b, 40.0, 1.0);
@@ -171,7 +171,7 @@ fn cornell_outside_and_inside() {
 /// Axis-parallel rays exactly on the median planes (x, y, z ∈ {−1, −0.5, 0, 0.5, 1}) and
 /// triangles lying in those planes.
 #[test]
-fn rays_and_triangles_on_split_planes() {
+fn dacrt_rays_and_triangles_on_split_planes() {
     let mut tris = Vec::new();
     for &p in &[-1.0f32, -0.5, 0.0, 0.5, 1.0] {
         // A triangle in the plane x = p, one in y = p, one in z = p.
@@ -235,7 +235,7 @@ fn rays_and_triangles_on_split_planes() {
 /// Coincident triangles (ties in t go to the smaller id), a fan of 1000 triangles sharing a
 /// vertex (everything straddles every plane near it) and degenerate triangles.
 #[test]
-fn coincident_fans_and_degenerates() {
+fn dacrt_coincident_fans_and_degenerates() {
     let mut tris = Vec::new();
     let sphere = procedural::icosphere(320);
     for k in 0..4 {
@@ -284,7 +284,7 @@ fn coincident_fans_and_degenerates() {
 
 /// A wall in front of everything: every camera ray terminates in the first leaves.
 #[test]
-fn all_rays_terminated_early() {
+fn dacrt_all_rays_terminated_early() {
     let wall = scene_of(&[
         [
             Vec3::new(-5.0, -5.0, 1.5),
@@ -308,7 +308,7 @@ fn all_rays_terminated_early() {
 }
 
 #[test]
-fn empty_batches_and_scenes() {
+fn dacrt_empty_batches_and_scenes() {
     let empty = Arc::new(Scene::from_meshes("e", vec![]).unwrap());
     let full = Arc::new(procedural::soup(100, 1));
     let cam = Camera::framing(&full.bounds(), 45.0, 1.0);
@@ -328,7 +328,7 @@ fn empty_batches_and_scenes() {
 /// Random tmin/tmax windows (including negative tmin), on camera rays that keep their pinhole
 /// hint and on random rays.
 #[test]
-fn tmin_tmax_clipping() {
+fn dacrt_tmin_tmax_clipping() {
     let s = Arc::new(merge(
         &procedural::icosphere(1280),
         &procedural::soup(1500, 2),
@@ -362,7 +362,7 @@ fn tmin_tmax_clipping() {
 /// A camera looking exactly down an axis (the centre rays are axis-parallel) at a scene of
 /// axis-aligned boxes (cones graze box edges), and random rays with zero direction components.
 #[test]
-fn axis_parallel_rays_and_grazing_cones() {
+fn dacrt_axis_parallel_rays_and_grazing_cones() {
     let s = procedural::cornell();
     let b = s.bounds();
     let c = b.center();
@@ -401,7 +401,7 @@ fn axis_parallel_rays_and_grazing_cones() {
 
 /// A larger scene above the sampled-split threshold, with the paper's constants.
 #[test]
-fn sampled_split_on_a_large_soup() {
+fn dacrt_sampled_split_on_a_large_soup() {
     let s = Arc::new(merge(
         &procedural::soup(30_000, 11),
         &procedural::icosphere(20_000),
@@ -425,7 +425,7 @@ fn sampled_split_on_a_large_soup() {
 
 /// Conic packets cut ray/box tests; ray mode terminates early; every counter moves.
 #[test]
-fn counters_and_packets_help() {
+fn dacrt_counters_and_packets_help() {
     let s = Arc::new(procedural::icosphere(20_000));
     let cam = Camera::framing(&s.bounds(), 45.0, 1.0);
     let rays = cam.rays(256, 256);

@@ -88,7 +88,7 @@ fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize) -> Case {
 }
 
 #[test]
-fn memory_is_a_deterministic_linear_function() {
+fn dacrt_memory_is_a_deterministic_linear_function() {
     // Equal triangle counts, very different shapes: 20·4^5 = 20480.
     let t = 20_480;
     let soup = Arc::new(procedural::soup(t, 3));

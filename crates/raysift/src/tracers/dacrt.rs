@@ -1070,3 +1070,71 @@ impl Tracer for Dacrt {
             .sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_defaults_are_the_papers() {
+        let c: Config = crate::tracers::config_from_opts("dacrt", &[]).unwrap();
+        assert_eq!(c, Config::default());
+        assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 100));
+        assert_eq!(
+            (c.split_sample_threshold, c.split_sample_stride),
+            (10_000, 50)
+        );
+        let o = [("mode".to_string(), "random".to_string())];
+        let c: Config = crate::tracers::config_from_opts("dacrt", &o).unwrap();
+        assert_eq!(c.mode, Mode::Random);
+    }
+
+    #[test]
+    fn packet_maps_are_inverse() {
+        let rays = crate::rays::generate::random_in_box(&Aabb::new(Vec3::ZERO, Vec3::ONE), 1000, 1);
+        let perm = morton_order(&rays, 0..1000, &Aabb::new(Vec3::ZERO, Vec3::ONE));
+        for (packets, n) in [
+            (
+                Packets::Tiles {
+                    width: 37,
+                    rows: 27,
+                    tw: 5,
+                },
+                37 * 27,
+            ),
+            (Packets::Runs { len: 1000 }, 1000),
+        ] {
+            let mut seen = vec![false; n];
+            for c in 0..packets.count() {
+                let mut n = 0;
+                packets.for_each(c, &perm, |k, bit| {
+                    assert!(!seen[k]);
+                    seen[k] = true;
+                    assert_eq!(packets.of(k, &perm), (c, bit));
+                    n += 1;
+                });
+                assert_eq!(packets.full_mask(c, &perm).count_ones(), n);
+            }
+            assert!(seen.iter().all(|&s| s), "{packets:?}");
+        }
+    }
+
+    #[test]
+    fn order_rule() {
+        // Low child first at x = 0: rays must go +x, or start at or below the plane.
+        let o = Order::NONE.child(0, 0.0, true, true);
+        assert!(o.allows(Vec3::new(-1.0, 0.0, 0.0), 0.0, Vec3::X));
+        assert!(o.allows(Vec3::new(-1.0, 0.0, 0.0), 0.0, -Vec3::X));
+        assert!(o.allows(Vec3::ZERO, 0.0, -Vec3::X));
+        assert!(!o.allows(Vec3::new(1.0, 0.0, 0.0), 0.0, -Vec3::X));
+        assert!(!o.allows(Vec3::ZERO, 1e-3, -Vec3::X));
+        // Second children add nothing.
+        let o = Order::NONE.child(1, 0.0, false, true);
+        assert!(o.allows(Vec3::new(0.0, 5.0, 0.0), 0.0, -Vec3::Y));
+        // High first: rays must go −y, or start at or above the plane.
+        let o = Order::NONE.child(1, 0.5, true, false);
+        assert!(o.allows(Vec3::new(0.0, 0.7, 0.0), 0.0, Vec3::Y));
+        assert!(!o.allows(Vec3::new(0.0, 0.2, 0.0), 0.0, Vec3::Y));
+        assert!(!o.allows(Vec3::NAN, 0.0, Vec3::NAN));
+    }
+}
