@@ -85,7 +85,8 @@ pub struct Config {
     pub r_limit: usize,
     /// Naive leaf when fewer triangles than this (paper: 16). Default 16.
     pub p_limit: usize,
-    /// Flush cones to rays when fewer active cones than this. Default 4.
+    /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
+    /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
     pub c_limit: usize,
     /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100).
     /// Default 100.
@@ -114,7 +115,7 @@ impl Default for Config {
         Self {
             r_limit: 20,
             p_limit: 16,
-            c_limit: 4,
+            c_limit: 16,
             sat_threshold: 100,
             split_sample_threshold: 10_000,
             split_sample_stride: 50,
