@@ -30,8 +30,25 @@ fn configs() -> Vec<Vec<(String, String)>> {
             ("split_sample_threshold", "64"),
             ("split_sample_stride", "3"),
             ("max_depth", "40"),
+            ("max_cone_deg", "60"),
+            ("max_shadow_cone_deg", "60"),
         ]));
     }
+    // Packets: wide cones allowed (small test images, scattered shadow packets), no ray filter
+    // at flush time, paper limits; and one with a cone limit that flushes at once.
+    out.push(opts(&[
+        ("mode", "packet"),
+        ("tasks", "2"),
+        ("max_cone_deg", "80"),
+        ("max_shadow_cone_deg", "80"),
+        ("flush_filter", "false"),
+    ]));
+    out.push(opts(&[
+        ("mode", "packet"),
+        ("tasks", "1"),
+        ("c_limit", "100000"),
+        ("max_shadow_cone_deg", "30"),
+    ]));
     out
 }
 
@@ -436,11 +453,22 @@ fn dacrt_counters_and_packets_help() {
     };
     let (ray, packet, random) = (run("ray"), run("packet"), run("random"));
     assert!(
-        packet.cone_box > 0 && packet.ray_box * 3 < ray.ray_box,
+        packet.cone_box > 0 && packet.ray_box * 2 < ray.ray_box,
         "{packet:?} vs {ray:?}"
     );
     assert!(ray.tri_box > 0 && ray.nodes > 0 && ray.ray_tri > 0 && ray.leaves > 0);
     assert_eq!(ray.cone_box, 0);
+    // Shadow packets (light cones) are used when allowed.
+    let mut d = tracers::create(
+        "dacrt",
+        &opts(&[("mode", "packet"), ("max_shadow_cone_deg", "30")]),
+    )
+    .unwrap();
+    d.prepare(s.clone()).unwrap();
+    let (hits, _) = d.intersect_timed(&rays);
+    let (shadow, _) = shadow_rays(&s, &rays, &hits, Vec3::new(2.0, 3.0, 2.0));
+    let (_, st) = d.occluded_timed(&shadow);
+    assert!(st.cone_box > 0, "{st:?}");
     // Early termination saves ray/box tests over the z-buffer alone.
     assert!(ray.ray_box < random.ray_box, "{ray:?} vs {random:?}");
     assert!(ray.ray_tri <= random.ray_tri, "{ray:?} vs {random:?}");

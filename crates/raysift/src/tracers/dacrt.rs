@@ -103,8 +103,12 @@ pub struct Config {
     /// Parallel tasks, each with its own index lists over a disjoint share of the rays; 0 = the
     /// number of rayon threads. Default 0.
     pub tasks: usize,
-    /// Packets whose cone half-angle exceeds this (degrees) are traced as rays. Default 20.
+    /// Camera packets whose cone half-angle exceeds this (degrees) are traced as rays.
+    /// Default 20.
     pub max_cone_deg: f32,
+    /// The same for shadow packets, whose 64 rays are grouped by position and can be far apart
+    /// (a wide light cone reaches many cells and floods their leaves with rays). Default 1.
+    pub max_shadow_cone_deg: f32,
     /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
     /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
     pub flush_filter: bool,
@@ -123,6 +127,7 @@ impl Default for Config {
             max_depth: 64,
             tasks: 0,
             max_cone_deg: 20.0,
+            max_shadow_cone_deg: 1.0,
             flush_filter: true,
         }
     }
@@ -927,7 +932,11 @@ impl Dacrt {
             }
         }
         let root = scene.bounds();
-        let max_angle = self.cfg.max_cone_deg.to_radians();
+        let max_angle = match packets {
+            Packets::Runs { .. } => self.cfg.max_shadow_cone_deg,
+            _ => self.cfg.max_cone_deg,
+        }
+        .to_radians();
         // Packets first: coherent ones become cones, the rays of the others go to the ray list.
         let mut rend = 0;
         for c in 0..ncones {
