@@ -4,29 +4,32 @@
 //! small enough for the naive double loop.
 //!
 //! What implements which part of the paper:
-//! - **§3.1–3.2, Fig. 2–3, Algorithm 1** ([`Task::ray_rec`]): the in-place recursion. A node is
+//! - **§3.1–3.2, Fig. 2–3, Algorithm 1** (`Task::ray_rec`): the in-place recursion. A node is
 //!   `(cell, triangle prefix [0, nt), ray range [rterm, rend))`; each child is built by
 //!   partitioning the parent's prefix (children are prefixes, so the second child re-filters the
 //!   same parent range). Naive leaf when `rays < r_limit` or `triangles < p_limit`.
 //! - **Early ray termination** (§3.2): finished rays are swapped into the global prefix
 //!   `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is final;
-//!   see [`Order`] for the exact rule (hit inside the leaf cell, and every earlier stretch of the
+//!   see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch of the
 //!   ray already visited).
 //! - **§3.5, Fig. 4** (triangle streaming): per-axis min/max lists (six f32 arrays, an SoA version
 //!   of the paper's four reshuffled lists), so the split-plane test of a large stream reads 8 bytes
 //!   per triangle. Streams below `sat_threshold` also run the 9 edge axes of the Akenine-Möller
 //!   test ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped
 //!   as in the paper).
-//! - **§3.6, Fig. 5** (split choice, [`Task::choose_split`]): longest axis; for streams of at least
+//! - **§3.6, Fig. 5** (split choice, `Task::choose_split`): longest axis; for streams of at least
 //!   `split_sample_threshold` triangles the mean of the clamped span midpoints of every
 //!   `split_sample_stride`-th triangle, else the spatial median. Guard: when every triangle
 //!   straddles the plane (no progress possible), or the cell cannot be split in f32, go naive.
-//! - **§3.3, Algorithm 2, Appendix** (conic packets, [`Task::cone_rec`]): 8×8 pixel tiles of
-//!   pinhole rays (or 64 consecutive shadow rays, with the cone from the light to their origins)
-//!   bounded by a cone (axis, f64 cos², 64 termination bits); exact cone/box test
+//! - **§3.3, Algorithm 2, Appendix** (conic packets, `Task::cone_rec`): 8×8 pixel tiles of
+//!   pinhole rays, or 64 shadow rays consecutive in a Morton order of their origins with the cone
+//!   from the light to the origins (cut at their distance, plus a small ball around the light
+//!   because the rays end a few ulps off it), bounded by a cone (axis, f64 cos², 64 termination
+//!   bits); exact cone/box test
 //!   ([`crate::geom::cone_box_overlap`]: axis ray, then the silhouette edges from a 64-entry
-//!   table); below `c_limit` cones the non-terminated rays of the cones are flushed into the ray
-//!   list and Algorithm 1 continues; terminated rays set their cone's bit, and cones with every
+//!   table); below `c_limit` cones (or `p_limit` triangles) the non-terminated rays of the cones
+//!   are flushed into the ray list (by default only those entering the cell: `flush_filter`)
+//!   and Algorithm 1 continues; terminated rays set their cone's bit, and cones with every
 //!   bit set leave the cone list through their own terminated prefix.
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
