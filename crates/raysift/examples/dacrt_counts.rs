@@ -62,6 +62,11 @@ fn main() {
     let mut cols: Vec<(&str, Stats, f64)> = Vec::new();
     // Basic: ray mode.
     let (t, p) = make("ray");
+    println!(
+        "prepare (per-axis min/max lists): {:.1} ms, {} bytes held",
+        p.prepare_ms,
+        t.bytes()
+    );
     let (_, s) = t.intersect_timed(&rays);
     cols.push(("Basic (ray)", s.clone(), p.prepare_ms + s.trace_ms));
     // Conic packets.
