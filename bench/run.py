@@ -43,6 +43,7 @@ MISS = np.uint32(0xFFFFFFFF)
 
 # Agreement tolerances (issue #3, point 5).
 T_REL_TOL = 1e-4  # t within 1e-4 relative
+T_ABS_POS = 1e-6  # ... or within 1e-6 x scene size in distance (hits next to the origin)
 UV_ABS_TOL = 1e-3  # u, v of the same primitive (catches a struct-layout mismatch)
 GRAZE_FRAC = 1e-4  # at most this fraction of rays may differ in the miss set / hit surface
 GRAZE_MIN = 3  # ... or this many, whichever is larger (tiny workloads)
@@ -320,6 +321,8 @@ def prepare_scene(ctx, spec):
     sc["triangles"] = int(tris.shape[0])
     v = np.asarray(tris).reshape(-1, 3)
     sc["bounds"] = [v.min(0).tolist(), v.max(0).tolist()] if len(v) else [[0, 0, 0], [0, 0, 0]]
+    # coordinate magnitude: what limits the precision of a hit distance
+    sc["size"] = float(np.abs(np.array(sc["bounds"])).max() + np.ptp(np.array(sc["bounds"]), axis=0).max())
     del v, tris
     try:
         info = last_json(run_proc([rs, "info", spec, "--json"])[0])
@@ -415,8 +418,29 @@ def run_contender(ctx, sc, w, c, out=None):
 # agreement
 
 
-def agree(ref_path, got_path, occlusion, rays_path):
-    """Compares a contender's hits with Embree's. Returns a dict; 'ok' False on disagreement."""
+def ray_tri_t(tris, prim, o, d):
+    """Möller–Trumbore in float64 with a little slack on the barycentrics: (t, inside)."""
+    v = np.asarray(tris[prim], np.float64).reshape(-1, 3, 3)
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    with np.errstate(all="ignore"):
+        inv = 1.0 / det
+        s = o - v[:, 0]
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        w = np.einsum("ij,ij->i", d, q) * inv
+        t = np.einsum("ij,ij->i", e2, q) * inv
+    eps = 1e-5
+    inside = (det != 0) & (u >= -eps) & (w >= -eps) & (u + w <= 1 + eps)
+    return t, inside
+
+
+def agree(ref_path, got_path, occlusion, rays_path, scene_size, tris_path):
+    """Compares a contender's hits with Embree's. Returns a dict; 'ok' False on disagreement.
+
+    t agrees when |dt| <= T_REL_TOL * t, or (for hits right next to the ray origin, where float
+    positions limit the precision of t) |dt| * |dir| <= T_ABS_POS * scene_size."""
     if occlusion:
         a = np.load(ref_path).astype(bool)
         b = np.load(got_path).astype(bool)
@@ -432,30 +456,48 @@ def agree(ref_path, got_path, occlusion, rays_path):
     if a.shape != b.shape:
         return dict(ok=False, n=int(a.size), error=f"shape {b.shape} vs Embree's {a.shape}")
     n = a.size
+    rays = np.load(rays_path, mmap_mode="r")
     ha, hb = a["prim"] != MISS, b["prim"] != MISS
     miss_diff = np.nonzero(ha != hb)[0]
-    both = ha & hb
-    ta, tb = a["t"].astype(np.float64), b["t"].astype(np.float64)
-    scale = np.maximum(np.maximum(np.abs(ta), np.abs(tb)), 1e-30)
-    t_bad = both & (np.abs(ta - tb) > T_REL_TOL * scale)
-    same_prim = both & (a["prim"] == b["prim"])
-    ties = both & ~same_prim & ~t_bad
-    uv_bad = same_prim & ~t_bad & ((np.abs(a["u"] - b["u"]) > UV_ABS_TOL) | (np.abs(a["v"] - b["v"]) > UV_ABS_TOL))
-    # a different surface (t differs) is what an edge-grazing ray does when one test lets it slip
-    # between two triangles and the other does not; like miss-set differences, only a tiny fraction
-    # of rays may do so.
-    graze = len(miss_diff) + int(t_bad.sum())
+    both = np.nonzero(ha & hb)[0]
+    ta, tb = a["t"][both].astype(np.float64), b["t"][both].astype(np.float64)
+    dlen = np.linalg.norm(np.asarray(rays[both, 3:6], np.float64), axis=1)
+    dt = np.abs(ta - tb)
+    tol = np.maximum(T_REL_TOL * np.maximum(np.abs(ta), np.abs(tb)), T_ABS_POS * scene_size / np.maximum(dlen, 1e-30))
+    t_bad = dt > tol
+    same = a["prim"][both] == b["prim"][both]
+    other_surface = t_bad & ~same
+    t_off = t_bad & same
+    # a tie: another primitive at the same t (shared edge or vertex, overlapping triangles); check
+    # that the ray really meets the contender's primitive there
+    cand = np.nonzero(~same & ~t_bad)[0]
+    wrong = np.zeros(len(both), bool)
+    if len(cand):
+        tris = np.load(tris_path, mmap_mode="r")
+        idx = both[cand]
+        o = np.asarray(rays[idx, 0:3], np.float64)
+        d = np.asarray(rays[idx, 3:6], np.float64)
+        t2, inside = ray_tri_t(tris, b["prim"][idx].astype(np.int64), o, d)
+        ok2 = inside & (np.abs(t2 - tb[cand]) <= tol[cand])
+        wrong[cand[~ok2]] = True
+    ties = ~same & ~t_bad & ~wrong
+    uv_bad = same & ~t_bad & ((np.abs(a["u"][both] - b["u"][both]) > UV_ABS_TOL)
+                              | (np.abs(a["v"][both] - b["v"][both]) > UV_ABS_TOL))
+    # A ray grazing an edge may slip between two triangles under one test and not the other: then
+    # the miss sets differ, or it hits another surface behind. Only a tiny fraction may do so.
+    graze = len(miss_diff) + int(t_bad.sum()) + int(wrong.sum())
     allowed = max(GRAZE_MIN, int(GRAZE_FRAC * n))
     ok = graze <= allowed and int(uv_bad.sum()) == 0
+    good = ~t_bad
+    rel = dt[good] / np.maximum(np.maximum(np.abs(ta[good]), np.abs(tb[good])), 1e-30)
     res = dict(ok=ok, n=int(n), hits_ref=int(ha.sum()), hits=int(hb.sum()), miss_set_differ=int(len(miss_diff)),
-               t_differ=int(t_bad.sum()), prim_ties=int(ties.sum()), uv_differ=int(uv_bad.sum()),
-               allowed=allowed, max_rel_t=float(np.max(np.abs(ta - tb)[both & ~t_bad] / scale[both & ~t_bad]))
-               if (both & ~t_bad).any() else 0.0)
-    bad = np.concatenate([miss_diff, np.nonzero(t_bad)[0], np.nonzero(uv_bad)[0]])
+               other_surface=int(other_surface.sum()), t_differ=int(t_off.sum()), prim_ties=int(ties.sum()),
+               wrong_prim=int(wrong.sum()),
+               uv_differ=int(uv_bad.sum()), allowed=allowed, max_rel_t=float(rel.max()) if len(rel) else 0.0)
+    bad = np.sort(np.concatenate([miss_diff, both[t_bad], both[uv_bad], both[wrong]]))
     if len(bad):
-        rays = np.load(rays_path, mmap_mode="r")
         ex = []
-        for i in np.sort(bad)[:8]:
+        for i in bad[:8]:
             ex.append(dict(ray=int(i), ray_data=[float(x) for x in rays[i]],
                            embree=[float(a["t"][i]), int(a["prim"][i]), float(a["u"][i]), float(a["v"][i])],
                            got=[float(b["t"][i]), int(b["prim"][i]), float(b["u"][i]), float(b["v"][i])]))
@@ -468,8 +510,8 @@ def describe_agreement(r):
         return r["error"]
     if "occluded_ref" in r:
         return f"{r['differ']} of {r['n']} rays differ (allowed {r['allowed']})"
-    return (f"miss set differs on {r['miss_set_differ']}, other surface on {r['t_differ']} "
-            f"(allowed {r['allowed']} together), u/v differ on {r['uv_differ']}, ties {r['prim_ties']}, "
+    return (f"miss set differs on {r['miss_set_differ']}, other surface on {r['other_surface']}, t off on "
+            f"{r['t_differ']}, wrong primitive on {r['wrong_prim']} (allowed {r['allowed']} together), u/v differ on {r['uv_differ']}, ties {r['prim_ties']}, "
             f"max rel t {r['max_rel_t']:.1e}")
 
 
@@ -568,7 +610,7 @@ def bench_scene(ctx, spec, results):
                         hf = (r["hits"] / w["count"]) if w["count"] else 0.0
                         wres["hit_fraction"] = hf
                         continue
-                    a = agree(ref_out, out, w["occlusion"], w["rays"])
+                    a = agree(ref_out, out, w["occlusion"], w["rays"], sc["size"], sc["tris"])
                     a["vs"] = ref_name
                     wres["agreement"][c["name"]] = a
                     if not a["ok"]:
@@ -576,7 +618,7 @@ def bench_scene(ctx, spec, results):
                              f"{describe_agreement(a)}\n!! examples: {json.dumps(a.get('examples', [])[:4])}")
                         results["disagreements"].append(dict(scene=sc["name"], workload=wname,
                                                              contender=c["name"], **a))
-                    elif a.get("miss_set_differ", 0) + a.get("t_differ", 0) + a.get("differ", 0):
+                    elif a.get("miss_set_differ", 0) + a.get("other_surface", 0) + a.get("t_differ", 0) + a.get("wrong_prim", 0) + a.get("differ", 0):
                         log(f"  note: {c['name']} vs {ref_name} on {wname}: {describe_agreement(a)}; "
                             f"rays: {[e['ray'] if isinstance(e, dict) else e for e in a.get('examples', [])]}")
                 else:
@@ -670,7 +712,7 @@ def main(argv=None):
                   rounds=mode["rounds"], warmup_rounds=1, camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
                   raysift_tracers=tracers, kernel=platform.release(), versions=versions(),
-                  tolerances=dict(t_rel=T_REL_TOL, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC, graze_min=GRAZE_MIN),
+                  tolerances=dict(t_rel=T_REL_TOL, t_abs_pos=T_ABS_POS, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC, graze_min=GRAZE_MIN),
                   load=os.getloadavg()),
         scenes=[], disagreements=[], failures=[])
     specs = scene_list(args, mode)
