@@ -155,8 +155,10 @@ def write_report(res, results_path: Path, md_path: Path):
     L.append(f"* Workloads per scene, the same `rays.npy` for everyone: camera {m['camera'][0]}×{m['camera'][1]}, "
              f"shadow and bounce rays from the camera hits, {m['random_rays']:,} random rays. "
              f"Each contender is a separate process; contenders alternate (A B C … A B C …), "
-             f"1 warm-up round + {m['rounds']} measured rounds; times are medians with [min–max] spread, "
-             "read from each tool's own JSON (process start-up and file loading excluded).")
+             f"1 warm-up round + {m['rounds']} measured rounds; each process prepares and traces "
+             f"{m.get('inproc_runs', 1)} time(s) and its last run counts (steady state: buffers, allocator and "
+             "thread pools warm, the structure rebuilt from scratch); times are medians over rounds with "
+             "[min–max] spread, read from each tool's own JSON (process start-up and file loading excluded).")
     L.append("* *Dynamic frame* = prepare (build) + trace, as for a scene that changes every frame. "
              "*Ratio* = raysift ÷ best Embree config at the same thread count, median of per-round ratios "
              "(> 1: raysift is slower). Peak RSS is the whole process (scene, rays, hits, structure). "

@@ -406,10 +406,16 @@ def command(ctx, sc, w, c, out):
 
 
 def run_contender(ctx, sc, w, c, out=None):
+    """One process: prepare + trace `inproc` times (--repeat); the last run counts (the earlier
+    ones warm the process: page faults, allocator, thread pools), as in a renderer's steady state."""
     cpus = ctx["cpus"][: c["threads"]]
-    o, _, rss, wall = run_proc(command(ctx, sc, w, c, out), cpus=cpus, timeout=ctx["timeout"])
+    cmd = command(ctx, sc, w, c, out) + ["--repeat", ctx["inproc"]]
+    o, _, rss, wall = run_proc(cmd, cpus=cpus, timeout=ctx["timeout"])
     j = last_json(o)
-    return dict(prepare_ms=float(j["prepare_ms"]), trace_ms=float(j["trace_ms"]), hits=int(j["hits"]),
+    pre = j.get("prepare_ms_runs") or [j["prepare_ms"]]
+    tr = j.get("trace_ms_runs") or [j["trace_ms"]]
+    return dict(prepare_ms=float(pre[-1]), trace_ms=float(tr[-1]), hits=int(j["hits"]),
+                prepare_ms_runs=pre, trace_ms_runs=tr,
                 peak_rss_bytes=int(rss), wall_s=wall, bytes_per_triangle=j.get("bytes_per_triangle"),
                 raw=j)
 
@@ -673,6 +679,8 @@ def main(argv=None):
     ap.add_argument("--tracers", help="raysift tracers to run (default: all that `raysift tracers` lists)")
     ap.add_argument("--threads", help="thread counts, e.g. 1,2 (default: mode's)")
     ap.add_argument("--rounds", type=int, help="measured rounds after the warm-up (default 5; quick 3)")
+    ap.add_argument("--inproc", type=int, help="prepare+trace runs inside each process, the last one "
+                    "measured (default 2; --check 1)")
     ap.add_argument("--timeout", type=float, default=600, help="seconds before one contender run is killed")
     ap.add_argument("--raysift", help="raysift binary (default target/release/raysift)")
     ap.add_argument("--peer", help="embree-peer binary (default bench/target/release/embree-peer)")
@@ -702,7 +710,8 @@ def main(argv=None):
     threads = [t for t in threads if t <= len(all_cpus)] or [len(all_cpus)]
     tracers = args.tracers.split(",") if args.tracers else list_tracers(raysift)
     ctx = dict(mode=mode, raysift=raysift, peer=peer, cpus=all_cpus, threads=threads, tracers=tracers,
-               rounds=mode["rounds"], timeout=args.timeout, keep_work=args.keep_work,
+               rounds=mode["rounds"], timeout=args.timeout,
+               inproc=args.inproc or (1 if mode_name == "check" else 2), keep_work=args.keep_work,
                workloads=[w for w in args.workloads.split(",") if w in WORKLOADS],
                work=Path(args.work) if args.work else BENCH / "work" / mode_name)
     ctx["work"].mkdir(parents=True, exist_ok=True)
@@ -711,7 +720,7 @@ def main(argv=None):
         meta=dict(date=now.strftime("%Y-%m-%d %H:%M UTC"), mode=mode_name,
                   command="python3 bench/run.py " + shlex.join(sys.argv[1:] if argv is None else argv),
                   cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
-                  rounds=mode["rounds"], warmup_rounds=1, camera=[mode["width"], mode["height"]],
+                  rounds=mode["rounds"], warmup_rounds=1, inproc_runs=ctx["inproc"], camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
                   raysift_tracers=tracers, kernel=platform.release(), versions=versions(),
                   tolerances=dict(t_rel=T_REL_TOL, t_abs_pos=T_ABS_POS, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC, graze_min=GRAZE_MIN),

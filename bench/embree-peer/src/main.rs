@@ -514,11 +514,14 @@ fn main() {
     let native16 = prop(RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED);
     let native8 = prop(RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED);
 
-    let mut t_out = vec![0f32; if args.occlusion { 0 } else { n }];
-    let mut p_out = vec![0u32; if args.occlusion { 0 } else { n }];
-    let mut u_out = vec![0f32; if args.occlusion { 0 } else { n }];
-    let mut v_out = vec![0f32; if args.occlusion { 0 } else { n }];
-    let mut occ = vec![0u8; if args.occlusion { n } else { 0 }];
+    // Output buffers, allocated once and touched (non-zero fill, so the pages are really mapped)
+    // before any timing, as a renderer reuses its buffers from frame to frame.
+    let nh = if args.occlusion { 0 } else { n };
+    let mut t_out = vec![f32::INFINITY; nh];
+    let mut p_out = vec![MISS; nh];
+    let mut u_out = vec![-1f32; nh];
+    let mut v_out = vec![-1f32; nh];
+    let mut occ = vec![0xFFu8; if args.occlusion { n } else { 0 }];
     let out = Out {
         t: t_out.as_mut_ptr(),
         prim: p_out.as_mut_ptr(),
