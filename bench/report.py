@@ -125,7 +125,7 @@ def write_report(res, results_path: Path, md_path: Path):
     stem = results_path.stem
     m = res["meta"]
     try:
-        pl = plots(res, bench / "results" / "plots", stem)
+        pl = plots(res, results_path.resolve().parent / "plots", stem)
     except Exception as e:  # noqa: BLE001  (the tables matter more than the pictures)
         print(f"plots failed: {e}")
         pl = {}
@@ -187,7 +187,10 @@ def write_report(res, results_path: Path, md_path: Path):
     if rs_names:
         L.append("### Summary: raysift ÷ best Embree (trace only / dynamic frame)")
         L.append("")
-        L.append("| scene | triangles | workload | hit frac. | " + " | ".join(rs_names) + " |")
+        L.append("Each cell: trace-time ratio / dynamic-frame ratio against the fastest Embree configuration "
+                 "(LOW or MEDIUM) at the same thread count; below 1 means raysift is faster.")
+        L.append("")
+        L.append("| scene | triangles | workload | hit (occluded) frac. | " + " | ".join(rs_names) + " |")
         L.append("|---|---:|---|---:|" + "---:|" * len(rs_names))
         for s in scenes:
             for wname, w in s["workloads"].items():
@@ -210,7 +213,7 @@ def write_report(res, results_path: Path, md_path: Path):
             continue
         L.append(f"### {wname}: {WORKLOAD_TEXT[wname]}")
         L.append("")
-        L.append("| scene | triangles | rays | hit frac. | contender | prepare ms | trace ms [min–max] | Mrays/s | "
+        L.append("| scene | triangles | rays | hit (occluded) frac. | contender | prepare ms | trace ms [min–max] | Mrays/s | "
                  "dynamic ms | trace ratio | dynamic ratio | peak RSS MB | bytes/tri | agrees |")
         L.append("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
         for s, w in rows:
@@ -227,6 +230,8 @@ def write_report(res, results_path: Path, md_path: Path):
                 rt = c.get("ratio_trace")
                 rd = c.get("ratio_dynamic")
                 bpt = sm.get("bytes_per_triangle")
+                if c["kind"] == "embree" and s["triangles"] < 10000:
+                    bpt = None  # an RSS difference says nothing about a tiny structure
                 L.append(
                     f"| {s['name']} | {s['triangles']:,} | {w['rays']:,} | {_f(w.get('hit_fraction'), 3)} | {n} | "
                     f"{_f(sm['prepare_ms']['median'], 2)} | {_f(tr['median'], 2)} [{_f(tr['min'], 2)}–{_f(tr['max'], 2)}] | "
