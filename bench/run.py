@@ -405,11 +405,11 @@ def command(ctx, sc, w, c, out):
     return cmd
 
 
-def run_contender(ctx, sc, w, c, out=None):
+def run_contender(ctx, sc, w, c, out=None, inproc=None):
     """One process: prepare + trace `inproc` times (--repeat); the last run counts (the earlier
     ones warm the process: page faults, allocator, thread pools), as in a renderer's steady state."""
     cpus = ctx["cpus"][: c["threads"]]
-    cmd = command(ctx, sc, w, c, out) + ["--repeat", ctx["inproc"]]
+    cmd = command(ctx, sc, w, c, out) + ["--repeat", inproc or ctx["inproc"]]
     o, _, rss, wall = run_proc(cmd, cpus=cpus, timeout=ctx["timeout"])
     j = last_json(o)
     pre = j.get("prepare_ms_runs") or [j["prepare_ms"]]
@@ -597,7 +597,8 @@ def bench_scene(ctx, spec, results):
             for c in list(alive):
                 out = wdir / f"{wname}__{c['name']}.npy" if warm else None
                 try:
-                    r = run_contender(ctx, sc, w, c, out)
+                    # the warm-up round only checks the hits: one run per process is enough
+                    r = run_contender(ctx, sc, w, c, out, inproc=1 if warm else None)
                 except (ProcError, ValueError, KeyError) as e:
                     loud(f"{sc['name']} / {wname} / {c['name']} failed: {e}")
                     results["failures"].append(dict(scene=sc["name"], workload=wname, contender=c["name"],
