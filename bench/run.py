@@ -63,9 +63,11 @@ LIGHT_OVERRIDES = {
 }
 
 MODES = {
-    "full": dict(width=1024, height=1024, random=1 << 20, rounds=5, threads=[1, 2], naive_budget=2e9, scenes=None),
-    "quick": dict(width=1024, height=1024, random=1 << 20, rounds=3, threads=[1, 2], naive_budget=1.2e9,
-                  scenes=["bun_zipper.ply", "sphere:100000"]),
+    # naive_budget: rays x triangles above which the brute-force tracer is skipped (it tests every
+    # triangle: ~1e8 tests/s per core here, so 5e8 is a few seconds per run)
+    "full": dict(width=1024, height=1024, random=1 << 20, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
+    "quick": dict(width=1024, height=1024, random=1 << 20, rounds=3, threads=[1, 2], naive_budget=5e8,
+                  scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
     "check": dict(width=192, height=192, random=1 << 15, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
 }
@@ -188,7 +190,8 @@ def scene_list(args, mode):
         elif (sdir / w).is_file():
             specs.append(str((sdir / w).resolve()))
         else:
-            fallback = {"bun_zipper.ply": "sphere:65536", "bun_zipper_res2.ply": "sphere:20000"}.get(w)
+            fallback = {"bun_zipper.ply": "sphere:65536", "bun_zipper_res2.ply": "sphere:20000",
+                        "CornellBox-Original.obj": "cornell"}.get(w)
             if fallback:
                 log(f"NOTE: {w} not found in {sdir}: using {fallback} instead")
                 specs.append(fallback)
