@@ -48,6 +48,7 @@ UV_ABS_TOL = 1e-2  # u, v of the same primitive (catches a struct-layout mismatc
 GRAZE_FRAC = 1e-4  # at most this fraction of rays may differ in the miss set / hit surface
 GRAZE_MIN = 3  # ... or this many, whichever is larger (tiny workloads)
 
+FRAME_HIT_TARGET = 0.7  # camera framing: narrow the view until this fraction of a preview hits
 PROCEDURAL = ["sphere:100000", "soup:100000", "sphere:1000000", "soup:1000000"]
 SCENE_EXTS = (".ply", ".obj", ".off", ".gltf", ".glb")
 
@@ -271,7 +272,7 @@ def hit_fraction(hits_path):
 
 def frame_camera(ctx, sc, wdir):
     """Chooses eye/look/fov so that most camera rays hit: keeps raysift's default eye and narrows the
-    field of view about the centre of the bounds until >= 90% of a 64x64 preview hits (Embree traces
+    field of view about the centre of the bounds until >= 70% of a 64x64 preview hits (Embree traces
     the previews). A scene that covers 20% of the image would mostly measure misses."""
     name = Path(sc["spec"]).name
     lo, hi = np.array(sc["bounds"][0]), np.array(sc["bounds"][1])
@@ -290,7 +291,7 @@ def frame_camera(ctx, sc, wdir):
         f = hit_fraction(hp)
         if best is None or f > best[1] + 1e-9:
             best = (fov, f)
-        if f >= 0.9:
+        if f >= FRAME_HIT_TARGET:
             best = (fov, f)
             break
     return dict(eye=eye.tolist(), look=look.tolist(), up=[0.0, 1.0, 0.0], fov=best[0],
@@ -712,7 +713,14 @@ def main(argv=None):
     all_cpus = sorted(os.sched_getaffinity(0))
     threads = [int(x) for x in args.threads.split(",")] if args.threads else list(mode["threads"])
     threads = [t for t in threads if t <= len(all_cpus)] or [len(all_cpus)]
-    tracers = args.tracers.split(",") if args.tracers else list_tracers(raysift)
+    available = list_tracers(raysift)
+    if args.tracers is None:
+        tracers = available
+    else:  # "--tracers=" runs Embree alone
+        tracers = [t for t in args.tracers.split(",") if t]
+        unknown = [t for t in tracers if t not in available]
+        if unknown:
+            sys.exit(f"unknown tracer(s) {unknown}; `raysift tracers` lists {available}")
     ctx = dict(mode=mode, raysift=raysift, peer=peer, cpus=all_cpus, threads=threads, tracers=tracers,
                rounds=mode["rounds"], timeout=args.timeout,
                inproc=args.inproc or (1 if mode_name == "check" else 2), keep_work=args.keep_work,
