@@ -144,7 +144,9 @@ def write_report(res, results_path: Path, md_path: Path):
              f"Linux {m.get('kernel', '?')}; load average at start {m['load'][0]:.2f}, at end "
              f"{m.get('load_end', [float('nan')])[0]:.2f} (the machine is shared: absolute times drift, "
              "ratios from the same run hold).")
-    L.append(f"* Command: `{m['command']}` at raysift commit `{m['raysift_commit']}`, "
+    binary = "" if m.get("raysift_binary", "").endswith("target/release/raysift") and "/tmp/" not in m.get(
+        "raysift_binary", "") else f" (raysift binary {m.get('raysift_binary')})"
+    L.append(f"* Command: `{m['command']}` at commit `{m['raysift_commit']}`{binary}, "
              f"{m.get('elapsed_s', 0) / 60:.1f} minutes.")
     v = m.get("versions", {})
     L.append(f"* Contenders: raysift tracers {', '.join(m['raysift_tracers'])} (`raysift trace --json --pin`), "

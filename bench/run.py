@@ -602,7 +602,9 @@ def bench_scene(ctx, spec, results):
                 out = wdir / f"{wname}__{c['name']}.npy" if warm else None
                 try:
                     # the warm-up round only checks the hits: one run per process is enough
-                    r = run_contender(ctx, sc, w, c, out, inproc=1 if warm else None)
+                    # (naive has no structure to build: one run per process)
+                    r = run_contender(ctx, sc, w, c, out,
+                                      inproc=1 if warm or c.get("tracer") == "naive" else None)
                 except (ProcError, ValueError, KeyError) as e:
                     loud(f"{sc['name']} / {wname} / {c['name']} failed: {e}")
                     results["failures"].append(dict(scene=sc["name"], workload=wname, contender=c["name"],
@@ -734,7 +736,8 @@ def main(argv=None):
                   cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
                   rounds=mode["rounds"], warmup_rounds=1, inproc_runs=ctx["inproc"], camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
-                  raysift_tracers=tracers, kernel=platform.release(), versions=versions(),
+                  raysift_tracers=tracers, raysift_binary=str(raysift),
+                  raysift_version=run_proc([raysift, "--version"])[0].strip(), kernel=platform.release(), versions=versions(),
                   tolerances=dict(t_rel=T_REL_TOL, t_abs_pos=T_ABS_POS, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC, graze_min=GRAZE_MIN),
                   load=os.getloadavg()),
         scenes=[], disagreements=[], failures=[])
