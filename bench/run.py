@@ -768,8 +768,8 @@ def main(argv=None):
         write_report(results, out, Path(args.md))
     n_checks = sum(len(w["agreement"]) for s in results["scenes"] for w in s["workloads"].values())
     n_bad = len(results["disagreements"])
-    log(f"\nagreement: {n_checks - n_bad} passed, {n_bad} failed; {len(results['failures'])} failed runs; "
-        f"{time.perf_counter() - started:.0f} s")
+    log(f"\n{len(results['failures'])} failed run(s); {time.perf_counter() - started:.0f} s")
+    log(f"agreement: {n_checks - n_bad} passed, {n_bad} failed")
     if not ok:
         loud(f"RUN FAILED: {n_bad} disagreement(s) with Embree, {len(results['failures'])} failed run(s)")
         return 1
