@@ -603,8 +603,7 @@ def bench_scene(ctx, spec, results):
                 try:
                     # the warm-up round only checks the hits: one run per process is enough
                     # (naive has no structure to build: one run per process)
-                    r = run_contender(ctx, sc, w, c, out,
-                                      inproc=1 if warm or c.get("tracer") == "naive" else None)
+                    r = run_contender(ctx, sc, w, c, out, inproc=1 if warm else c["inproc"])
                 except (ProcError, ValueError, KeyError) as e:
                     loud(f"{sc['name']} / {wname} / {c['name']} failed: {e}")
                     results["failures"].append(dict(scene=sc["name"], workload=wname, contender=c["name"],
@@ -614,6 +613,11 @@ def bench_scene(ctx, spec, results):
                     continue
                 cres = wres["contenders"][c["name"]]
                 if warm:
+                    # Runs of a second or more hardly feel process warm-up: one run per process
+                    # there (saves time on big scenes); naive has no structure to build.
+                    long_run = r["prepare_ms"] + r["trace_ms"] > 1000
+                    c["inproc"] = 1 if long_run or c.get("tracer") == "naive" else ctx["inproc"]
+                    cres["inproc"] = c["inproc"]
                     cres["warmup"] = {k: v for k, v in r.items() if k != "raw"}
                     cres["json"] = r["raw"]
                     if ref_out is None:
