@@ -224,10 +224,49 @@ struct SceneHandle(RTCScene);
 unsafe impl Send for SceneHandle {}
 unsafe impl Sync for SceneHandle {}
 
-/// Work items: packets of up to 16 ray indices (MISS = empty lane), or single-ray index ranges.
+/// Work items: packets of up to 16 rays, or single-ray index ranges.
 enum Work {
-    Packets(Vec<[u32; 16]>),
+    Packets(Packets),
     Singles(usize),
+}
+
+/// 16-ray packets laid out before timing, as a renderer generates its rays: ray indices (MISS =
+/// empty lane), valid masks, and the rays already transposed to Embree's SoA order, so the timed
+/// loop copies them into the RTCRayHit16 as `raysift trace` reads its SoA RayBatch before timing.
+struct Packets {
+    index: Vec<[u32; 16]>,
+    valid: Vec<Valid16>,
+    /// org_x, org_y, org_z, tnear, dir_x, dir_y, dir_z, tfar per packet.
+    soa: Vec<[[f32; 16]; 8]>,
+}
+
+impl Packets {
+    fn new(index: Vec<[u32; 16]>, rays: &Rays) -> Self {
+        let mut valid = Vec::with_capacity(index.len());
+        let mut soa = Vec::with_capacity(index.len());
+        for pk in &index {
+            let mut v = Valid16([0; 16]);
+            let mut a = [[0f32; 16]; 8];
+            for lane in 0..16 {
+                if pk[lane] == MISS {
+                    a[6][lane] = 1.0; // a harmless direction for the inactive lane
+                    continue;
+                }
+                let (o, d, tmin, tmax) = rays.get(pk[lane] as usize);
+                v.0[lane] = -1;
+                let col = [o[0], o[1], o[2], tmin, d[0], d[1], d[2], tmax];
+                for (k, x) in col.into_iter().enumerate() {
+                    a[k][lane] = x;
+                }
+            }
+            valid.push(v);
+            soa.push(a);
+        }
+        Self { index, valid, soa }
+    }
+    fn len(&self) -> usize {
+        self.index.len()
+    }
 }
 
 fn build_packets(n: usize, tile: Option<(usize, usize)>, map: Option<Vec<u64>>) -> Vec<[u32; 16]> {
@@ -299,14 +338,18 @@ fn trace(
                     Work::Packets(packets) => {
                         const CHUNK: usize = 16;
                         let mut rh: Box<RTCRayHit16> = Box::new(unsafe { std::mem::zeroed() });
-                        let mut valid = Valid16([0; 16]);
+                        // fields Embree only reads, set once
+                        rh.ray.time = [0.0; 16];
+                        rh.ray.mask = [u32::MAX; 16];
+                        rh.ray.flags = [0; 16];
+                        rh.ray.id = std::array::from_fn(|k| k as u32);
                         loop {
                             let start = next.fetch_add(CHUNK, Ordering::Relaxed);
                             if start >= packets.len() {
                                 break;
                             }
-                            for pk in &packets[start..(start + CHUNK).min(packets.len())] {
-                                unsafe { trace16(scene.0, rays, pk, occlusion, &mut rh, &mut valid, &mut args, out) };
+                            for p in start..(start + CHUNK).min(packets.len()) {
+                                unsafe { trace16(scene.0, packets, p, occlusion, &mut rh, &mut args, out) };
                             }
                         }
                     }
@@ -371,40 +414,27 @@ unsafe fn trace1(
 }
 
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 unsafe fn trace16(
     scene: RTCScene,
-    rays: &Rays,
-    pk: &[u32; 16],
+    packets: &Packets,
+    p: usize,
     occlusion: bool,
     rh: &mut RTCRayHit16,
-    valid: &mut Valid16,
     args: &mut RTCQueryArguments,
     out: Out,
 ) {
+    let pk = &packets.index[p];
+    let a = &packets.soa[p];
+    let valid = &packets.valid[p];
     let r = &mut rh.ray;
-    for lane in 0..16 {
-        let i = pk[lane];
-        let (o, d, tmin, tmax, ok) = if i == MISS {
-            ([0.0; 3], [0.0, 0.0, 1.0], 0.0, 0.0, 0)
-        } else {
-            let (o, d, a, b) = rays.get(i as usize);
-            (o, d, a, b, -1)
-        };
-        valid.0[lane] = ok;
-        r.org_x[lane] = o[0];
-        r.org_y[lane] = o[1];
-        r.org_z[lane] = o[2];
-        r.tnear[lane] = tmin;
-        r.dir_x[lane] = d[0];
-        r.dir_y[lane] = d[1];
-        r.dir_z[lane] = d[2];
-        r.time[lane] = 0.0;
-        r.tfar[lane] = tmax;
-        r.mask[lane] = u32::MAX;
-        r.id[lane] = lane as u32;
-        r.flags[lane] = 0;
-    }
+    r.org_x = a[0];
+    r.org_y = a[1];
+    r.org_z = a[2];
+    r.tnear = a[3];
+    r.dir_x = a[4];
+    r.dir_y = a[5];
+    r.dir_z = a[6];
+    r.tfar = a[7];
     if occlusion {
         rtcOccluded16(valid, scene, &mut rh.ray, args);
         for lane in 0..16 {
@@ -485,7 +515,7 @@ fn main() {
         m
     });
     let work = if args.packet == 16 {
-        Work::Packets(build_packets(n, args.tile, map))
+        Work::Packets(Packets::new(build_packets(n, args.tile, map), &rays))
     } else {
         Work::Singles(n)
     };
