@@ -69,7 +69,7 @@ MODES = {
     "full": dict(width=1024, height=1024, random=1 << 20, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
     "quick": dict(width=1024, height=1024, random=1 << 20, rounds=3, threads=[1, 2], naive_budget=5e8,
                   scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
-    "check": dict(width=192, height=192, random=1 << 15, rounds=0, threads=[2], naive_budget=float("inf"),
+    "check": dict(width=128, height=128, random=1 << 14, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
 }
 WORKLOADS = ["camera", "shadow", "bounce", "random"]
