@@ -48,6 +48,7 @@ UV_ABS_TOL = 1e-2  # u, v of the same primitive (catches a struct-layout mismatc
 GRAZE_FRAC = 1e-4  # at most this fraction of rays may differ in the miss set / hit surface
 GRAZE_MIN = 3  # ... or this many, whichever is larger (tiny workloads)
 
+LONG_RUN_MS = 400  # a run at least this long is measured once per process (warm-up hardly matters)
 FRAME_HIT_TARGET = 0.7  # camera framing: narrow the view until this fraction of a preview hits
 PROCEDURAL = ["sphere:100000", "soup:100000", "sphere:1000000", "soup:1000000"]
 SCENE_EXTS = (".ply", ".obj", ".off", ".gltf", ".glb")
@@ -67,7 +68,7 @@ MODES = {
     # naive_budget: rays x triangles above which the brute-force tracer is skipped (it tests every
     # triangle: ~1e8 tests/s per core here, so 5e8 is a few seconds per run)
     "full": dict(width=1024, height=1024, random=1 << 20, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
-    "quick": dict(width=1024, height=1024, random=1 << 20, rounds=3, threads=[1, 2], naive_budget=5e8,
+    "quick": dict(width=1024, height=1024, random=1 << 20, rounds=2, threads=[1, 2], naive_budget=5e8,
                   scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
     "check": dict(width=128, height=128, random=1 << 14, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
@@ -615,7 +616,7 @@ def bench_scene(ctx, spec, results):
                 if warm:
                     # Runs of a second or more hardly feel process warm-up: one run per process
                     # there (saves time on big scenes); naive has no structure to build.
-                    long_run = r["prepare_ms"] + r["trace_ms"] > 1000
+                    long_run = r["prepare_ms"] + r["trace_ms"] > LONG_RUN_MS
                     c["inproc"] = 1 if long_run or c.get("tracer") == "naive" else ctx["inproc"]
                     cres["inproc"] = c["inproc"]
                     cres["warmup"] = {k: v for k, v in r.items() if k != "raw"}
