@@ -67,8 +67,8 @@ LIGHT_OVERRIDES = {
 MODES = {
     # naive_budget: rays x triangles above which the brute-force tracer is skipped (it tests every
     # triangle: ~1e8 tests/s per core here, so 5e8 is a few seconds per run)
-    "full": dict(width=1024, height=1024, random=1 << 20, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
-    "quick": dict(width=1024, height=1024, random=1 << 20, rounds=2, threads=[1, 2], naive_budget=5e8,
+    "full": dict(width=1024, height=1024, random=1 << 19, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
+    "quick": dict(width=1024, height=1024, random=1 << 19, rounds=2, threads=[1, 2], naive_budget=5e8,
                   scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
     "check": dict(width=128, height=128, random=1 << 14, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
@@ -749,8 +749,10 @@ def main(argv=None):
     specs = scene_list(args, mode)
     log(f"mode {mode_name}: {len(specs)} scenes, tracers {tracers}, threads {threads}, rounds {mode['rounds']} "
         f"(+1 warm-up), cpus {all_cpus}, load average {os.getloadavg()[0]:.2f}")
-    for spec in specs:
+    for k, spec in enumerate(specs):
         bench_scene(ctx, spec, results)
+        log(f"  [{k + 1}/{len(specs)} scenes, {(time.perf_counter() - started) / 60:.1f} min elapsed, "
+            f"load average {os.getloadavg()[0]:.2f}]")
     results["meta"]["elapsed_s"] = time.perf_counter() - started
     results["meta"]["load_end"] = os.getloadavg()
     emb = None
