@@ -15,13 +15,12 @@ pub enum Error {
         msg: String,
     },
     /// The file could not be opened, read or written.
-    #[error("{file}: {source}")]
+    #[error("{file}: {err}")]
     Io {
         /// File name.
         file: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (shown in the message, so not chained as a source).
+        err: std::io::Error,
     },
     /// Invalid argument or configuration (unknown tracer name, bad option, ...).
     #[error("{0}")]
@@ -46,7 +45,7 @@ impl Error {
     pub fn io(file: impl Into<String>, source: std::io::Error) -> Self {
         Error::Io {
             file: file.into(),
-            source,
+            err: source,
         }
     }
 }

@@ -24,6 +24,14 @@ pub fn write_atomic(
         f(&mut w).map_err(|e| Error::io(&name, e))?;
         w.flush().map_err(|e| Error::io(&name, e))?;
     }
+    // Temporary files are created private (0600); outputs should be readable like any new file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| Error::io(&name, e))?;
+    }
     tmp.persist(path).map_err(|e| Error::io(&name, e.error))?;
     Ok(())
 }

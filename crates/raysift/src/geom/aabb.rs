@@ -135,14 +135,28 @@ impl Aabb {
     ) -> Option<(f32, f32)> {
         let t0 = (self.min - origin) * inv_dir;
         let t1 = (self.max - origin) * inv_dir;
-        // f32::min/max return the non-NaN operand, so NaN slabs never shrink the interval.
-        let tn = t0.min(t1);
-        let tf = t0.max(t1);
-        let t_enter = tmin.max(tn.x).max(tn.y).max(tn.z);
-        let t_exit = tmax
-            .min(tf.x * super::BOX_EXIT_SLACK)
-            .min(tf.y * super::BOX_EXIT_SLACK)
-            .min(tf.z * super::BOX_EXIT_SLACK);
+        // Near and far planes are picked by the sign of `inv_dir` (-0.0 gives -inf: near = max), not
+        // by min/max of t0 and t1: for a ray parallel to a slab with its origin exactly on one of
+        // its planes, that plane's t is 0·inf = NaN, and `f32::min(NaN, inf)` would return inf and
+        // reject the ray. With the planes picked by sign, the NaN falls into a comparison below
+        // that ignores it (`NaN > e` is false), and the other plane's ±inf leaves the interval
+        // open: the ray, lying in the box's face plane, is kept (conservative).
+        let mut t_enter = tmin;
+        let mut t_exit = tmax;
+        for a in 0..3 {
+            let (near, far) = if inv_dir[a].is_sign_negative() {
+                (t1[a], t0[a])
+            } else {
+                (t0[a], t1[a])
+            };
+            if near > t_enter {
+                t_enter = near;
+            }
+            let far = far * super::BOX_EXIT_SLACK;
+            if far < t_exit {
+                t_exit = far;
+            }
+        }
         if t_enter <= t_exit {
             Some((t_enter, t_exit))
         } else {
@@ -169,6 +183,25 @@ mod tests {
         assert!(b
             .ray_interval(Vec3::new(-1.0, 2.0, 0.5), inv(Vec3::X), 0.0, f32::INFINITY)
             .is_none());
+        // Axis-parallel rays exactly on a face plane are kept (conservative), on the min and on the
+        // max plane, whatever the sign of the zero components.
+        for o in [
+            Vec3::new(-1.0, 0.0, 0.5),
+            Vec3::new(-1.0, 1.0, 0.5),
+            Vec3::new(-1.0, 0.0, 0.0),
+            Vec3::new(-1.0, 1.0, 1.0),
+        ] {
+            for d in [
+                Vec3::X,
+                Vec3::new(1.0, -0.0, 0.0),
+                Vec3::new(1.0, 0.0, -0.0),
+            ] {
+                assert!(
+                    b.ray_interval(o, inv(d), 0.0, f32::INFINITY).is_some(),
+                    "{o} {d}"
+                );
+            }
+        }
         // Axis-parallel ray exactly on a face plane is kept (conservative).
         assert!(b
             .ray_interval(Vec3::new(-1.0, 1.0, 0.5), inv(Vec3::X), 0.0, f32::INFINITY)

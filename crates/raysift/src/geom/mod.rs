@@ -6,13 +6,19 @@
 //! function on the same data (see `triangle`).
 
 pub mod aabb;
+pub mod conebox;
 pub mod shapes;
+pub mod slab;
 pub mod triangle;
+pub mod tribox;
 
 pub use aabb::Aabb;
+pub use conebox::cone_box_overlap;
 pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};
+pub use slab::SlabRay;
 pub use triangle::{intersect_triangle, TriHit};
+pub use tribox::{tri_box_edge_axes, tri_box_overlap};
 
 /// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the
 /// triangle test: a hit computed by [`intersect_triangle`] may lie a few ulps outside the exact box of

@@ -4,7 +4,11 @@
 //! | name | technique | module |
 //! |---|---|---|
 //! | `naive` | brute force, the ground truth | [`naive`] |
+//! | `bvh` | binned-SAH BVH (Wald 2007), pbrt-style traversal: the static baseline | [`bvh`] |
+//! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
 
+pub mod bvh;
+pub mod dacrt;
 pub mod naive;
 
 use crate::error::{Error, Result};
@@ -12,7 +16,7 @@ use crate::tracer::Tracer;
 use serde::de::DeserializeOwned;
 
 /// Names of all registered tracers, in the order the CLI lists them.
-pub const NAMES: &[&str] = &["naive"];
+pub const NAMES: &[&str] = &["naive", "bvh", "dacrt"];
 
 /// Builds the tracer `name` with options `key=value` (each tracer documents its keys in its
 /// `Config`; unknown keys are an error).
@@ -22,6 +26,10 @@ pub fn create(name: &str, opts: &[(String, String)]) -> Result<Box<dyn Tracer>> 
             no_options(name, opts)?;
             Ok(Box::new(naive::Naive::new()))
         }
+        "bvh" => Ok(Box::new(bvh::BvhTracer::new(config_from_opts(
+            name, opts,
+        )?)?)),
+        "dacrt" => Ok(Box::new(dacrt::Dacrt::new(config_from_opts(name, opts)?))),
         _ => Err(Error::Invalid(format!(
             "unknown tracer {name:?}; available: {}",
             NAMES.join(", ")

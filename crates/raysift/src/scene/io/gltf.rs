@@ -1,12 +1,671 @@
-//! glTF loader (placeholder until the loaders land).
+//! glTF 2.0 loader: `.gltf` (JSON, buffers as base64 data URIs or external files next to it)
+//! and `.glb` (binary container), on the `gltf` crate.
+//!
+//! Loads every mesh primitive of every node of the default scene (all scenes in order when
+//! there is no default; all root nodes when the file has no scene at all). Each node that has a
+//! mesh gives one [`Mesh`] (its primitives concatenated in order) with the node's world
+//! transform (parents composed). Modes: TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (converted
+//! with the spec's vertex order: strip `i` is `(i, i+1, i+2)` for even `i` and `(i, i+2, i+1)`
+//! for odd `i`, fan `i` is `(i+1, i+2, 0)`); POINTS and LINES are skipped. Indexed and
+//! non-indexed primitives, sparse accessors. Skins and morph targets are ignored.
+//!
+//! Why the crate and where not: `gltf` parses and validates the JSON (references, enums) and
+//! resolves buffers (data URIs, external files, the GLB `BIN` chunk). But some of its own code
+//! panics on hostile input (its accessor iterators compute `count - 1` and `offset + stride *
+//! ...` unchecked; its validation indexes the POSITION accessor before checking the index; a
+//! GLB header length under 12 underflows; an invalid `%xx` URI escape is unwrapped), so this
+//! module splits the GLB container itself, pre-checks attribute indices and URIs, and decodes
+//! accessor bytes itself with checked arithmetic, reporting byte offsets. No `catch_unwind`.
+//! The node hierarchy is walked with an explicit stack (a deep chain cannot overflow the call
+//! stack), a node reached twice in one scene is an error (glTF nodes form trees), and a sparse
+//! accessor without a `bufferView` is bounded by the file's data size, so hostile counts fail
+//! cleanly instead of exhausting memory.
 
 use crate::error::{Error, Result};
 use crate::scene::Mesh;
+use glam::{Affine3A, Mat4, Vec3};
+use gltf::json;
+use gltf::mesh::Mode;
+use std::collections::HashMap;
 use std::path::Path;
 
 /// Parses glTF (`.gltf` JSON or `.glb`) bytes into meshes; `base` resolves external buffers.
-pub fn parse(_bytes: &[u8], file: &str, _base: Option<&Path>) -> Result<Vec<Mesh>> {
-    Err(Error::Invalid(format!(
-        "{file}: the glTF loader is not built yet"
-    )))
+pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>> {
+    if bytes.iter().all(|b| b.is_ascii_whitespace()) {
+        return Err(Error::parse(file, "byte 0", "empty file"));
+    }
+    let (json_bytes, blob, glb) = if bytes.starts_with(b"glTF") {
+        let (j, b) = split_glb(bytes, file)?;
+        (j, b, true)
+    } else {
+        (bytes, None, false)
+    };
+    let root: json::Root = json::deserialize::from_slice(json_bytes).map_err(|e| {
+        let where_ = if glb { "JSON chunk, " } else { "" };
+        Error::parse(
+            file,
+            format!("{where_}line {}, column {}", e.line(), e.column()),
+            format!("invalid glTF JSON: {e}"),
+        )
+    })?;
+    precheck(&root, file)?;
+    let doc = gltf::Document::from_json(root).map_err(|e| match e {
+        gltf::Error::Validation(errs) => {
+            let (path, err) = &errs[0];
+            let more = if errs.len() > 1 {
+                format!(" (and {} more problems)", errs.len() - 1)
+            } else {
+                String::new()
+            };
+            Error::parse(file, path.to_string(), format!("invalid glTF: {err}{more}"))
+        }
+        other => Error::parse(file, "document", other.to_string()),
+    })?;
+    let buffers = load_buffers(&doc, base, blob, file)?;
+
+    let mut builder = Builder {
+        file,
+        buffers: &buffers,
+        cache: HashMap::new(),
+        out: Vec::new(),
+    };
+    // One list of root nodes per traversal (a node may appear in several scenes).
+    let traversals: Vec<Vec<gltf::Node>> = if let Some(scene) = doc.default_scene() {
+        vec![scene.nodes().collect()]
+    } else if doc.scenes().len() > 0 {
+        doc.scenes().map(|s| s.nodes().collect()).collect()
+    } else {
+        // No scene: every node that is nobody's child.
+        let mut is_child = vec![false; doc.nodes().len()];
+        for n in doc.nodes() {
+            for c in n.children() {
+                is_child[c.index()] = true;
+            }
+        }
+        vec![doc.nodes().filter(|n| !is_child[n.index()]).collect()]
+    };
+    for roots in traversals {
+        builder.traverse(roots, doc.nodes().len())?;
+    }
+    Ok(builder.out)
+}
+
+/// Splits a GLB container into its JSON chunk and optional BIN chunk (spec section 4.4).
+fn split_glb<'a>(bytes: &'a [u8], file: &str) -> Result<(&'a [u8], Option<Vec<u8>>)> {
+    let err = |at: usize, msg: String| Error::parse(file, format!("byte {at}"), msg);
+    let u32_at = |at: usize| -> Option<u32> {
+        bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+    };
+    let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
+        return Err(err(
+            bytes.len(),
+            "truncated GLB header (12 bytes needed)".into(),
+        ));
+    };
+    if version != 2 {
+        return Err(err(
+            4,
+            format!("unsupported GLB version {version} (2 expected)"),
+        ));
+    }
+    if length as usize != bytes.len() {
+        return Err(err(
+            8,
+            format!(
+                "GLB header declares {length} bytes but the file has {} (truncated or padded)",
+                bytes.len()
+            ),
+        ));
+    }
+    let mut at = 12usize;
+    let mut json = None;
+    let mut bin = None;
+    while at < bytes.len() {
+        let (Some(len), Some(ty)) = (u32_at(at), u32_at(at + 4)) else {
+            return Err(err(at, "truncated GLB chunk header".into()));
+        };
+        let start = at + 8;
+        let end = start
+            .checked_add(len as usize)
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| {
+                err(
+                    at,
+                    format!(
+                        "GLB chunk of {len} bytes runs past the end of the file ({} bytes)",
+                        bytes.len()
+                    ),
+                )
+            })?;
+        match ty {
+            0x4E4F_534A if json.is_none() && at == 12 => json = Some(&bytes[start..end]),
+            0x004E_4942 if bin.is_none() && json.is_some() => {
+                bin = Some(bytes[start..end].to_vec())
+            }
+            0x4E4F_534A | 0x004E_4942 => {
+                return Err(err(at, "unexpected or repeated JSON/BIN chunk".into()))
+            }
+            // Unknown chunk types must be ignored (spec).
+            _ => {}
+        }
+        if json.is_none() {
+            return Err(err(at, "the first GLB chunk must be JSON".into()));
+        }
+        at = end;
+    }
+    let json = json.ok_or_else(|| err(12, "GLB has no JSON chunk".into()))?;
+    Ok((json, bin))
+}
+
+/// Checks what `gltf`'s validation would otherwise panic on.
+fn precheck(root: &json::Root, file: &str) -> Result<()> {
+    let na = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (sem, idx) in &prim.attributes {
+                if idx.value() >= na {
+                    return Err(Error::parse(
+                        file,
+                        format!("meshes[{m}].primitives[{p}].attributes"),
+                        format!(
+                            "attribute {:?} refers to accessor {} but there are {na} accessors",
+                            sem,
+                            idx.value()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    for (b, buf) in root.buffers.iter().enumerate() {
+        if let Some(uri) = &buf.uri {
+            if !uri.contains(':') && !percent_decodes(uri) {
+                return Err(Error::parse(
+                    file,
+                    format!("buffers[{b}].uri"),
+                    format!("invalid percent-encoding in {uri:?}"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// True when `%xx` escapes in `s` decode to valid UTF-8.
+fn percent_decodes(s: &str) -> bool {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' {
+            let hex = b
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok());
+            match hex {
+                Some(v) => {
+                    out.push(v);
+                    i += 3;
+                    continue;
+                }
+                None => {
+                    out.push(b'%');
+                }
+            }
+        } else {
+            out.push(b[i]);
+        }
+        i += 1;
+    }
+    std::str::from_utf8(&out).is_ok()
+}
+
+fn load_buffers(
+    doc: &gltf::Document,
+    base: Option<&Path>,
+    mut blob: Option<Vec<u8>>,
+    file: &str,
+) -> Result<Vec<gltf::buffer::Data>> {
+    let mut out = Vec::new();
+    for buffer in doc.buffers() {
+        let place = format!("buffers[{}]", buffer.index());
+        let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
+            .map_err(|e| Error::parse(file, &place, format!("cannot load buffer: {e}")))?;
+        if data.len() < buffer.length() {
+            return Err(Error::parse(
+                file,
+                &place,
+                format!(
+                    "buffer declares {} bytes but its data has {}",
+                    buffer.length(),
+                    data.len()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+struct Builder<'a> {
+    file: &'a str,
+    buffers: &'a [gltf::buffer::Data],
+    /// Decoded meshes by glTF mesh index, so instances decode once.
+    cache: HashMap<usize, (Vec<Vec3>, Vec<[u32; 3]>)>,
+    out: Vec<Mesh>,
+}
+
+impl Builder<'_> {
+    /// Depth-first, children in order, with an explicit stack: a hostile file with a very deep
+    /// hierarchy must not overflow the call stack. glTF nodes form disjoint trees, so a node
+    /// reached twice in one scene (two parents, a cycle, or listed twice) is an error; that
+    /// also bounds the work by the node count.
+    fn traverse(&mut self, roots: Vec<gltf::Node>, node_count: usize) -> Result<()> {
+        let mut seen = vec![false; node_count];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut seen[node.index()], true) {
+                return Err(Error::parse(
+                    self.file,
+                    format!("nodes[{}]", node.index()),
+                    "node reached twice in one scene (more than one parent, a cycle, or listed twice)",
+                ));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.instance(&node, world)?;
+            let children: Vec<gltf::Node> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        Ok(())
+    }
+
+    /// Adds the node's mesh, if any, as one [`Mesh`] with the node's world transform.
+    fn instance(&mut self, node: &gltf::Node, world: Mat4) -> Result<()> {
+        let Some(mesh) = node.mesh() else {
+            return Ok(());
+        };
+        if !self.cache.contains_key(&mesh.index()) {
+            let decoded = self.decode_mesh(&mesh)?;
+            self.cache.insert(mesh.index(), decoded);
+        }
+        let (positions, indices) = &self.cache[&mesh.index()];
+        if !indices.is_empty() {
+            let node_name = node
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("node {}", node.index()));
+            let mesh_name = mesh
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("mesh {}", mesh.index()));
+            let mut m = Mesh::new(
+                format!("{node_name}/{mesh_name}"),
+                positions.clone(),
+                indices.clone(),
+            );
+            m.transform = Affine3A::from_mat4(world);
+            self.out.push(m);
+        }
+        Ok(())
+    }
+
+    fn decode_mesh(&self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+        let mut positions = Vec::new();
+        let mut tris = Vec::new();
+        for prim in mesh.primitives() {
+            let mode = prim.mode();
+            if !matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
+                continue;
+            }
+            let place = |what: &str| {
+                format!(
+                    "meshes[{}].primitives[{}]{what}",
+                    mesh.index(),
+                    prim.index()
+                )
+            };
+            let pos_acc = prim
+                .get(&gltf::Semantic::Positions)
+                .ok_or_else(|| Error::parse(self.file, place(""), "no POSITION attribute"))?;
+            let base = positions.len() as u64;
+            let first_new = positions.len();
+            self.read_positions(&pos_acc, &mut positions)?;
+            let nv = (positions.len() - first_new) as u64;
+            if base + nv > u32::MAX as u64 {
+                return Err(Error::parse(self.file, place(""), "too many vertices"));
+            }
+            let idx: Vec<u32> = match prim.indices() {
+                Some(acc) => self.read_indices(&acc, nv)?,
+                None => (0..nv as u32).collect(),
+            };
+            let n = idx.len();
+            let b = base as u32;
+            match mode {
+                Mode::Triangles => {
+                    if !n.is_multiple_of(3) {
+                        return Err(Error::parse(
+                            self.file,
+                            place(""),
+                            format!("TRIANGLES primitive with {n} vertices (not a multiple of 3)"),
+                        ));
+                    }
+                    tris.extend(idx.chunks_exact(3).map(|c| [b + c[0], b + c[1], b + c[2]]));
+                }
+                Mode::TriangleStrip => {
+                    for i in 0..n.saturating_sub(2) {
+                        let t = if i % 2 == 0 {
+                            [idx[i], idx[i + 1], idx[i + 2]]
+                        } else {
+                            [idx[i], idx[i + 2], idx[i + 1]]
+                        };
+                        tris.push(t.map(|v| b + v));
+                    }
+                }
+                Mode::TriangleFan => {
+                    for i in 0..n.saturating_sub(2) {
+                        tris.push([idx[i + 1], idx[i + 2], idx[0]].map(|v| b + v));
+                    }
+                }
+                _ => unreachable!("filtered above"),
+            }
+        }
+        Ok((positions, tris))
+    }
+
+    fn read_positions(&self, acc: &gltf::Accessor, out: &mut Vec<Vec3>) -> Result<()> {
+        use gltf::accessor::{DataType, Dimensions};
+        if acc.data_type() != DataType::F32 || acc.dimensions() != Dimensions::Vec3 {
+            return Err(Error::parse(
+                self.file,
+                format!("accessors[{}]", acc.index()),
+                format!(
+                    "POSITION must be VEC3 FLOAT, found {:?} {:?} (quantized positions are not supported)",
+                    acc.dimensions(),
+                    acc.data_type()
+                ),
+            ));
+        }
+        let data = self.gather(acc, 12)?;
+        out.reserve(acc.count());
+        for (i, e) in data.iter().enumerate() {
+            let f = |k: usize| f32::from_le_bytes(e.bytes[4 * k..4 * k + 4].try_into().unwrap());
+            let p = Vec3::new(f(0), f(1), f(2));
+            if !p.is_finite() {
+                return Err(Error::parse(
+                    self.file,
+                    format!(
+                        "accessors[{}], element {i} (buffer {}, byte {})",
+                        acc.index(),
+                        e.buffer,
+                        e.offset
+                    ),
+                    format!("non-finite position {p:?}"),
+                ));
+            }
+            out.push(p);
+        }
+        Ok(())
+    }
+
+    fn read_indices(&self, acc: &gltf::Accessor, nv: u64) -> Result<Vec<u32>> {
+        use gltf::accessor::{DataType, Dimensions};
+        let size = match acc.data_type() {
+            DataType::U8 => 1,
+            DataType::U16 => 2,
+            DataType::U32 => 4,
+            t => {
+                return Err(Error::parse(
+                    self.file,
+                    format!("accessors[{}]", acc.index()),
+                    format!("indices must be unsigned integers, found {t:?}"),
+                ))
+            }
+        };
+        if acc.dimensions() != Dimensions::Scalar {
+            return Err(Error::parse(
+                self.file,
+                format!("accessors[{}]", acc.index()),
+                "indices must be SCALAR",
+            ));
+        }
+        let data = self.gather(acc, size)?;
+        let mut out = Vec::with_capacity(data.len());
+        for (i, e) in data.iter().enumerate() {
+            let v = read_uint(e.bytes);
+            if v as u64 >= nv {
+                return Err(Error::parse(
+                    self.file,
+                    format!(
+                        "accessors[{}], element {i} (buffer {}, byte {})",
+                        acc.index(),
+                        e.buffer,
+                        e.offset
+                    ),
+                    format!("vertex index {v} out of range (the primitive has {nv} vertices)"),
+                ));
+            }
+            out.push(v);
+        }
+        Ok(out)
+    }
+
+    /// The bytes of every element of `acc` (`elem` bytes each), sparse substitution applied.
+    fn gather(&self, acc: &gltf::Accessor, elem: usize) -> Result<Vec<Elem<'_>>> {
+        let count = acc.count();
+        let place = format!("accessors[{}]", acc.index());
+        if count == 0 {
+            // The spec's minimum; `gltf` 1.4 does not validate it (and its own reader underflows).
+            return Err(Error::parse(
+                self.file,
+                place,
+                "count is 0 (glTF requires at least 1)",
+            ));
+        }
+        let mut elems: Vec<Elem> = match acc.view() {
+            Some(view) => {
+                let s = self.strided(&view, acc.offset(), count, elem, &place)?;
+                (0..count).map(|i| s.get(i)).collect()
+            }
+            // Sparse accessor without a view: base values are zeros.
+            None => {
+                // Nothing in the file backs `count` here, so bound it by the file's data: a
+                // hostile count must be an error, not a multi-gigabyte allocation.
+                let data: usize = self.buffers.iter().map(|b| b.len()).sum();
+                let limit = data.saturating_mul(16).saturating_add(1 << 24);
+                if count.saturating_mul(elem) > limit {
+                    return Err(Error::parse(
+                        self.file,
+                        place,
+                        format!(
+                            "sparse accessor without bufferView has count {count}, implausibly large for {data} bytes of buffers"
+                        ),
+                    ));
+                }
+                const ZEROS: [u8; 16] = [0; 16];
+                vec![
+                    Elem {
+                        bytes: &ZEROS[..elem],
+                        buffer: 0,
+                        offset: 0,
+                    };
+                    count
+                ]
+            }
+        };
+        if let Some(sparse) = acc.sparse() {
+            let sc = sparse.count();
+            let ind = sparse.indices();
+            let isize_ = match ind.index_type() {
+                gltf::accessor::sparse::IndexType::U8 => 1,
+                gltf::accessor::sparse::IndexType::U16 => 2,
+                gltf::accessor::sparse::IndexType::U32 => 4,
+            };
+            let iv = ind.view();
+            // Sparse indices and values are tightly packed (no byteStride allowed).
+            let is = self.strided_packed(&iv, ind.offset(), sc, isize_, &place)?;
+            let vals = sparse.values();
+            let vs = self.strided_packed(&vals.view(), vals.offset(), sc, elem, &place)?;
+            for k in 0..sc {
+                let target = read_uint(is.get(k).bytes) as usize;
+                if target >= count {
+                    let e = is.get(k);
+                    return Err(Error::parse(
+                        self.file,
+                        format!(
+                            "{place}, sparse index {k} (buffer {}, byte {})",
+                            e.buffer, e.offset
+                        ),
+                        format!("sparse index {target} out of range (count {count})"),
+                    ));
+                }
+                elems[target] = vs.get(k);
+            }
+        }
+        Ok(elems)
+    }
+
+    fn strided_packed(
+        &self,
+        view: &gltf::buffer::View,
+        offset: usize,
+        count: usize,
+        elem: usize,
+        place: &str,
+    ) -> Result<Strided<'_>> {
+        self.strided_with(view, offset, count, elem, place, Some(elem))
+    }
+
+    fn strided(
+        &self,
+        view: &gltf::buffer::View,
+        offset: usize,
+        count: usize,
+        elem: usize,
+        place: &str,
+    ) -> Result<Strided<'_>> {
+        self.strided_with(view, offset, count, elem, place, None)
+    }
+
+    fn strided_with(
+        &self,
+        view: &gltf::buffer::View,
+        offset: usize,
+        count: usize,
+        elem: usize,
+        place: &str,
+        stride: Option<usize>,
+    ) -> Result<Strided<'_>> {
+        let b = view.buffer().index();
+        let data = &self.buffers[b];
+        let v_start = view.offset();
+        let v_len = view.length();
+        if v_start.checked_add(v_len).is_none_or(|e| e > data.len()) {
+            return Err(Error::parse(
+                self.file,
+                format!("bufferViews[{}]", view.index()),
+                format!(
+                    "bytes {v_start}..{} are outside buffer {b} ({} bytes)",
+                    v_start.saturating_add(v_len),
+                    data.len()
+                ),
+            ));
+        }
+        let stride = stride.or(view.stride()).unwrap_or(elem);
+        if stride < elem {
+            return Err(Error::parse(
+                self.file,
+                format!("bufferViews[{}]", view.index()),
+                format!("byteStride {stride} is smaller than the element size {elem}"),
+            ));
+        }
+        let s = Strided {
+            view: &data[v_start..v_start + v_len],
+            view_index: view.index(),
+            buffer: b,
+            view_start: v_start,
+            offset,
+            stride,
+            elem,
+        };
+        s.check(count, self.file, place)?;
+        Ok(s)
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Elem<'a> {
+    bytes: &'a [u8],
+    buffer: usize,
+    /// Byte offset in the buffer.
+    offset: usize,
+}
+
+struct Strided<'a> {
+    view: &'a [u8],
+    view_index: usize,
+    buffer: usize,
+    view_start: usize,
+    offset: usize,
+    stride: usize,
+    elem: usize,
+}
+
+impl<'a> Strided<'a> {
+    /// Checks that `count` elements fit in the view; `get` is then in bounds.
+    fn check(&self, count: usize, file: &str, place: &str) -> Result<()> {
+        if count == 0 {
+            return Ok(());
+        }
+        let end = (count - 1)
+            .checked_mul(self.stride)
+            .and_then(|x| x.checked_add(self.offset))
+            .and_then(|x| x.checked_add(self.elem));
+        match end {
+            Some(e) if e <= self.view.len() => Ok(()),
+            _ => Err(Error::parse(
+                file,
+                format!(
+                    "{place} (buffer {}, byte {})",
+                    self.buffer,
+                    self.view_start.saturating_add(self.offset)
+                ),
+                format!(
+                    "{count} elements of {} bytes (stride {}) from byte {} do not fit in buffer view {} ({} bytes)",
+                    self.elem,
+                    self.stride,
+                    self.offset,
+                    self.view_index,
+                    self.view.len()
+                ),
+            )),
+        }
+    }
+
+    #[inline]
+    fn get(&self, i: usize) -> Elem<'a> {
+        let o = self.offset + i * self.stride;
+        Elem {
+            bytes: &self.view[o..o + self.elem],
+            buffer: self.buffer,
+            offset: self.view_start + o,
+        }
+    }
+}
+
+#[inline]
+fn read_uint(b: &[u8]) -> u32 {
+    match b.len() {
+        1 => b[0] as u32,
+        2 => u16::from_le_bytes([b[0], b[1]]) as u32,
+        _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+    }
 }

@@ -1,0 +1,495 @@
+//! End-to-end tests of the `raysift` command: the README's commands work, every tracer agrees
+//! through the files, and bad input gives a one-line error naming the file, exit code 2, no panic
+//! and no output file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn raysift(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raysift"))
+        .args(args)
+        .output()
+        .expect("raysift runs")
+}
+
+fn ok(args: &[&str]) -> Output {
+    let o = raysift(args);
+    assert!(
+        o.status.success(),
+        "raysift {args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+/// Runs a command that must fail cleanly: exit code 2, one line on stderr mentioning `needle`, no panic.
+fn fails(args: &[&str], needle: &str) -> String {
+    let o = raysift(args);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "raysift {args:?}: expected exit 2, got {:?}; stderr: {err}",
+        o.status.code()
+    );
+    assert!(
+        !err.contains("panicked"),
+        "raysift {args:?} panicked: {err}"
+    );
+    assert!(
+        err.contains(needle),
+        "raysift {args:?}: error should mention {needle:?}: {err}"
+    );
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "one-line error expected: {err}"
+    );
+    err
+}
+
+fn tmp() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+fn p(dir: &Path, name: &str) -> String {
+    dir.join(name).display().to_string()
+}
+
+fn tracer_names() -> Vec<String> {
+    String::from_utf8(ok(&["tracers"]).stdout)
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn render_default_scene_writes_a_png() {
+    let d = tmp();
+    let out = p(d.path(), "bunny.png");
+    let o = ok(&[
+        "render", "--tracer", "naive", "--width", "64", "--height", "48", "--out", &out, "--json",
+        "--stats",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["triangles"], 16301);
+    assert!(
+        v["hits"].as_u64().unwrap() > 64 * 48 / 5,
+        "the default framing should fill the view: {v}"
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+}
+
+#[test]
+fn trace_agrees_between_tracers_through_files() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "camera",
+        "sphere:2000",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--out",
+        &rays,
+    ]);
+    let random = p(d.path(), "random.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:2000",
+        "--count",
+        "1500",
+        "--seed",
+        "4",
+        "--out",
+        &random,
+    ]);
+    for r in [&rays, &random] {
+        let mut outputs = Vec::new();
+        for t in tracer_names() {
+            let hits = p(d.path(), &format!("hits-{t}.npy"));
+            let o = ok(&[
+                "trace",
+                "sphere:2000",
+                "--rays",
+                r,
+                "--tracer",
+                &t,
+                "--out",
+                &hits,
+                "--json",
+                "--threads",
+                "2",
+            ]);
+            let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            assert_eq!(v["tracer"], t.as_str());
+            assert_eq!(v["threads"], 2);
+            let occ = p(d.path(), &format!("occ-{t}.npy"));
+            ok(&[
+                "trace",
+                "sphere:2000",
+                "--rays",
+                r,
+                "--tracer",
+                &t,
+                "--out",
+                &occ,
+                "--occlusion",
+            ]);
+            outputs.push((
+                t,
+                std::fs::read(&hits).unwrap(),
+                std::fs::read(&occ).unwrap(),
+            ));
+        }
+        for (t, h, o) in &outputs[1..] {
+            assert!(
+                h == &outputs[0].1,
+                "{t} hits.npy differs from {}",
+                outputs[0].0
+            );
+            assert!(
+                o == &outputs[0].2,
+                "{t} occlusion differs from {}",
+                outputs[0].0
+            );
+        }
+    }
+}
+
+#[test]
+fn secondary_rays_from_hits() {
+    let d = tmp();
+    let (rays, hits, sh, map) = (
+        p(d.path(), "c.npy"),
+        p(d.path(), "h.npy"),
+        p(d.path(), "s.npy"),
+        p(d.path(), "m.npy"),
+    );
+    ok(&[
+        "rays", "camera", "cornell", "--width", "32", "--height", "32", "--out", &rays,
+    ]);
+    ok(&[
+        "trace", "cornell", "--rays", &rays, "--tracer", "naive", "--out", &hits,
+    ]);
+    ok(&[
+        "rays", "shadow", "cornell", "--rays", &rays, "--hits", &hits, "--light", "0,1.9,0",
+        "--out", &sh, "--map", &map,
+    ]);
+    ok(&[
+        "rays",
+        "bounce",
+        "cornell",
+        "--rays",
+        &rays,
+        "--hits",
+        &hits,
+        "--seed",
+        "3",
+        "--out",
+        &p(d.path(), "b.npy"),
+    ]);
+    let o = ok(&[
+        "trace",
+        "cornell",
+        "--rays",
+        &sh,
+        "--tracer",
+        "naive",
+        "--occlusion",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["rays"].as_u64().unwrap() > 500);
+    // Hits from another scene are rejected.
+    fails(
+        &[
+            "rays",
+            "shadow",
+            "soup:10",
+            "--rays",
+            &rays,
+            "--hits",
+            &hits,
+            "--light",
+            "0,1,0",
+            "--out",
+            &p(d.path(), "x.npy"),
+        ],
+        "out of range",
+    );
+    assert!(!d.path().join("x.npy").exists());
+}
+
+#[test]
+fn info_and_export() {
+    let o = ok(&["info", "cornell", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["triangles"], 32);
+    let d = tmp();
+    let out = p(d.path(), "t.npy");
+    ok(&["export", "sphere:80", "--out", &out]);
+    assert_eq!(std::fs::metadata(&out).unwrap().len(), 128 + 80 * 36);
+}
+
+#[test]
+fn bad_input_is_a_clean_error_without_output() {
+    let d = tmp();
+    let out = p(d.path(), "out.npy");
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "camera",
+        "sphere:80",
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "--out",
+        &rays,
+    ]);
+
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &rays,
+            "--tracer",
+            "nope",
+            "--out",
+            &out,
+        ],
+        "unknown tracer",
+    );
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &p(d.path(), "missing.npy"),
+            "--tracer",
+            "naive",
+            "--out",
+            &out,
+        ],
+        "missing.npy",
+    );
+    fails(
+        &[
+            "trace",
+            "sphere:abc",
+            "--rays",
+            &rays,
+            "--tracer",
+            "naive",
+            "--out",
+            &out,
+        ],
+        "sphere:abc",
+    );
+    fails(&["info", &p(d.path(), "mesh.xyz")], "unknown scene format");
+
+    // A truncated rays file.
+    let bytes = std::fs::read(&rays).unwrap();
+    let cut = p(d.path(), "cut.npy");
+    std::fs::write(&cut, &bytes[..bytes.len() - 7]).unwrap();
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &cut,
+            "--tracer",
+            "naive",
+            "--out",
+            &out,
+        ],
+        "cut.npy",
+    );
+    // Garbage.
+    let junk = p(d.path(), "junk.npy");
+    std::fs::write(&junk, b"not numpy at all").unwrap();
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &junk,
+            "--tracer",
+            "naive",
+            "--out",
+            &out,
+        ],
+        "junk.npy",
+    );
+
+    // A malformed mesh file, a truncated one and an empty one.
+    let off = p(d.path(), "bad.off");
+    std::fs::write(&off, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n").unwrap();
+    fails(
+        &[
+            "trace", &off, "--rays", &rays, "--tracer", "naive", "--out", &out,
+        ],
+        "bad.off",
+    );
+    let empty = p(d.path(), "empty.ply");
+    std::fs::write(&empty, "").unwrap();
+    fails(&["info", &empty], "empty.ply");
+
+    // Zero rays.
+    let zero = p(d.path(), "zero.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:80",
+        "--count",
+        "1",
+        "--out",
+        &zero,
+    ]);
+    raysift::rays::npy::write_rays(&zero, &raysift::RayBatch::default()).unwrap();
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &zero,
+            "--tracer",
+            "naive",
+            "--out",
+            &out,
+        ],
+        "no rays",
+    );
+
+    // Bad camera and arguments.
+    fails(
+        &[
+            "rays",
+            "camera",
+            "sphere:80",
+            "--eye",
+            "0,0,0",
+            "--look",
+            "0,0,0",
+            "--out",
+            &out,
+        ],
+        "camera",
+    );
+    fails(
+        &[
+            "render",
+            "sphere:80",
+            "--tracer",
+            "naive",
+            "--width",
+            "0",
+            "--out",
+            &p(d.path(), "x.png"),
+        ],
+        "width",
+    );
+    fails(
+        &[
+            "render",
+            "sphere:80",
+            "--tracer",
+            "naive",
+            "--opt",
+            "foo=1",
+            "--out",
+            &p(d.path(), "x.png"),
+        ],
+        "option",
+    );
+
+    assert!(
+        !PathBuf::from(&out).exists(),
+        "no output file may be left behind"
+    );
+    assert!(!d.path().join("x.png").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(d.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".raysift-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn animate_writes_frames_and_reports_per_frame_times() {
+    let d = tmp();
+    let out = p(d.path(), "frames");
+    for motion in ["explode", "spin-parts"] {
+        let o = ok(&[
+            "animate",
+            "sphere:300",
+            "--motion",
+            motion,
+            "--frames",
+            "3",
+            "--tracer",
+            "naive",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--out",
+            &out,
+            "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let frames = v["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), 3);
+        assert!(frames
+            .iter()
+            .all(|f| f["trace_ms"].as_f64().unwrap() > 0.0 && f["prepare_ms"].is_number()));
+        // The geometry changes between frames, so the hit counts do too (explode spreads out).
+        assert!(d.path().join("frames/frame_0002.png").exists());
+    }
+    fails(
+        &["animate", "sphere:300", "--motion", "wobble", "--out", &out],
+        "wobble",
+    );
+}
+
+#[test]
+fn path_tracing_reports_every_bounce() {
+    let d = tmp();
+    let out = p(d.path(), "pt.png");
+    let o = ok(&[
+        "render",
+        "cornell",
+        "--tracer",
+        "naive",
+        "--integrator",
+        "path",
+        "--spp",
+        "2",
+        "--bounces",
+        "3",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--out",
+        &out,
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let b = v["per_bounce"].as_array().unwrap();
+    assert_eq!(b.len(), 4);
+    assert_eq!(b[0]["rays"], 2 * 24 * 24);
+    // Inside the closed-ish box most paths keep bouncing; each depth traces the previous depth's hits.
+    for k in 1..4 {
+        assert_eq!(b[k]["rays"], b[k - 1]["hits"]);
+    }
+    assert!(std::fs::metadata(&out).unwrap().len() > 100);
+}

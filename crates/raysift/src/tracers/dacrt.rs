@@ -1,0 +1,1153 @@
+//! `dacrt`: Divide-And-Conquer Ray Tracing (Mora 2011, "Naive ray-tracing: a divide-and-conquer
+//! approach"). No acceleration structure is stored: each call partitions a triangle index list
+//! and a ray index list in place, recursing on axis-aligned halves of space until a problem is
+//! small enough for the naive double loop.
+//!
+//! What implements which part of the paper:
+//! - **§3.1–3.2, Fig. 2–3, Algorithm 1** (`Task::ray_rec`): the in-place recursion. A node is
+//!   `(cell, triangle prefix [0, nt), ray range [rterm, rend))`; each child is built by
+//!   partitioning the parent's prefix (children are prefixes, so the second child re-filters the
+//!   same parent range). Naive leaf when `rays < r_limit` or `triangles < p_limit`.
+//! - **Early ray termination** (§3.2): finished rays are swapped into the global prefix
+//!   `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is final;
+//!   see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch of the
+//!   ray already visited).
+//! - **§3.5, Fig. 4** (triangle streaming): per-axis min/max lists (six f32 arrays, an SoA version
+//!   of the paper's four reshuffled lists), so the split-plane test of a large stream reads 8 bytes
+//!   per triangle. Streams below `sat_threshold` also run the 9 edge axes of the Akenine-Möller
+//!   test ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped
+//!   as in the paper).
+//! - **§3.6, Fig. 5** (split choice, `Task::choose_split`): longest axis; for streams of at least
+//!   `split_sample_threshold` triangles the mean of the clamped span midpoints of every
+//!   `split_sample_stride`-th triangle, else the spatial median. Guard: when every triangle
+//!   straddles the plane (no progress possible), or the cell cannot be split in f32, go naive.
+//! - **§3.3, Algorithm 2, Appendix** (conic packets, `Task::cone_rec`): 8×8 pixel tiles of
+//!   pinhole rays, or 64 shadow rays consecutive in a Morton order of their origins with the cone
+//!   from the light to the origins (cut at their distance, plus a small ball around the light
+//!   because the rays end a few ulps off it), bounded by a cone (axis, f64 cos², 64 termination
+//!   bits); exact cone/box test
+//!   ([`crate::geom::cone_box_overlap`]: axis ray, then the silhouette edges from a 64-entry
+//!   table); below `c_limit` cones (or `p_limit` triangles) the non-terminated rays of the cones
+//!   are flushed into the ray list (by default only those entering the cell: `flush_filter`)
+//!   and Algorithm 1 continues; terminated rays set their cone's bit, and cones with every
+//!   bit set leave the cone list through their own terminated prefix.
+//! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
+//!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
+//!   any-hit: every hit terminates its ray, in every mode.
+//! - **Threads**: as in the paper's path tracer, rayon tasks own disjoint shares of the rays
+//!   (bands of tile rows for camera rays) and their own index lists.
+//!
+//! Correctness is bit-exact with `naive`: every candidate pair goes through the shared
+//! [`intersect_triangle`] and [`closer`], and every filter is conservative (the z-buffer cut and
+//! box exits are widened by the shared rounding slack).
+//!
+//! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
+//! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
+//! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 4·R` (ray indices) and, in packet
+//!   mode, `44` bytes per cone (40 for the cone, 4 for its index), i.e. `44·⌈W/8⌉·(tile rows)`
+//!   for camera rays (`= 0.6875·R` when W and H are multiples of 8 and the bands are whole tile
+//!   rows) and, for shadow rays, `44·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
+//!   rays that groups them into compact packets).
+//!
+//! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
+//! `b = 4` (ray and random modes), `4.6875` (camera packets, full tiles), `12.6875` (shadow
+//! packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
+//! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
+//! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
+
+use crate::error::Result;
+use crate::geom::{cone_box_overlap, intersect_triangle, tri_box_edge_axes, Aabb, Cone};
+use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
+use crate::scene::{Scene, TriangleSoup};
+use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
+use glam::Vec3;
+use serde::Deserialize;
+use std::ops::Range;
+use std::sync::Arc;
+
+/// Which recursion to run.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Conic packets for pinhole and shadow batches, random-ray mode otherwise.
+    #[default]
+    Auto,
+    /// Conic packets when the batch's layout allows (falls back to `ray` otherwise).
+    Packet,
+    /// Rays with early termination (front-to-back when the rays share a viewpoint).
+    Ray,
+    /// Rays with a z-buffer and no termination (§3.4).
+    Random,
+}
+
+/// Options (`key=value` on the command line).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// Naive leaf when fewer active rays than this (paper: 20). Default 20.
+    pub r_limit: usize,
+    /// Naive leaf when fewer triangles than this (paper: 16). Default 16.
+    pub p_limit: usize,
+    /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
+    /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
+    pub c_limit: usize,
+    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100).
+    /// Default 100.
+    pub sat_threshold: usize,
+    /// Sampled split position for streams of at least this many triangles, spatial median
+    /// below (paper: 10 000). Default 10000.
+    pub split_sample_threshold: usize,
+    /// Sample every n-th triangle for the split position (paper: 50). Default 50.
+    pub split_sample_stride: usize,
+    /// `auto`, `packet`, `ray` or `random`. Default `auto`.
+    pub mode: Mode,
+    /// Recursion depth cap (a guard; leaves are made naive beyond it). Default 64.
+    pub max_depth: u32,
+    /// Parallel tasks, each with its own index lists over a disjoint share of the rays; 0 = the
+    /// number of rayon threads. Default 0.
+    pub tasks: usize,
+    /// Camera packets whose cone half-angle exceeds this (degrees) are traced as rays.
+    /// Default 20.
+    pub max_cone_deg: f32,
+    /// The same for shadow packets, whose 64 rays are grouped by position and can be far apart
+    /// (a wide light cone reaches many cells and floods their leaves with rays). Default 1.
+    pub max_shadow_cone_deg: f32,
+    /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
+    /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
+    pub flush_filter: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            r_limit: 20,
+            p_limit: 16,
+            c_limit: 16,
+            sat_threshold: 100,
+            split_sample_threshold: 10_000,
+            split_sample_stride: 50,
+            mode: Mode::Auto,
+            max_depth: 64,
+            tasks: 0,
+            max_cone_deg: 20.0,
+            max_shadow_cone_deg: 1.0,
+            flush_filter: true,
+        }
+    }
+}
+
+/// The DACRT tracer: the scene plus its per-axis triangle bounds (rebuilt by every prepare, O(T)).
+pub struct Dacrt {
+    cfg: Config,
+    scene: Option<Arc<Scene>>,
+    /// `lo[a][t]`, `hi[a][t]`: triangle `t`'s bounds on axis `a` (§3.5's min/max lists).
+    /// Degenerate triangles get `lo = +inf, hi = -inf` so the first split drops them (exact:
+    /// the shared triangle test never hits them).
+    lo: [Vec<f32>; 3],
+    hi: [Vec<f32>; 3],
+}
+
+impl Dacrt {
+    /// A tracer with options.
+    pub fn new(cfg: Config) -> Self {
+        Self {
+            cfg,
+            scene: None,
+            lo: Default::default(),
+            hi: Default::default(),
+        }
+    }
+
+    /// The options.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    fn tasks(&self) -> usize {
+        if self.cfg.tasks == 0 {
+            rayon::current_num_threads().max(1)
+        } else {
+            self.cfg.tasks
+        }
+    }
+}
+
+/// Relative widening of `t` cut-offs (z-buffer and termination), a few times the shared box
+/// slack: filters must keep a ray when a triangle could tie its best hit.
+#[inline(always)]
+fn widen(t: f32) -> f32 {
+    t + t.abs() * (4.0 * f32::EPSILON)
+}
+
+/// Relative gap a hit must keep from its leaf's exit to terminate the ray: generous, because a
+/// ray that is not terminated only costs time, and a ray terminated too early is wrong.
+const TERM_GAP: f32 = 1.0 / 16384.0;
+
+/// Front-to-back bookkeeping for early termination (§3.2 and references.md §1.4).
+///
+/// A ray may leave the recursion at a leaf when no unvisited cell can hold a closer or tying
+/// hit. Along every ancestor where the current node is the **first** visited child, the ray's
+/// points in the second child must come after its points here. With the first child on the low
+/// side of plane `s` on axis `a`, that holds when `d[a] ≥ 0` (the ray crosses low → high) or when
+/// the ray's segment starts at or below `s` (it never enters the high side). Over all such
+/// ancestors this folds into one bound per axis and side: `lo_min[a]` (smallest such `s`) and
+/// `hi_max[a]` (largest for high-first ancestors). Second children add nothing: the first
+/// child's cells were all visited before. Together with "hit at or before the leaf's exit" this
+/// makes termination valid for any ray set and any visiting order (the order only decides how
+/// often it applies).
+#[derive(Clone, Copy, Debug)]
+struct Order {
+    lo_min: [f32; 3],
+    hi_max: [f32; 3],
+}
+
+impl Order {
+    const NONE: Order = Order {
+        lo_min: [f32::INFINITY; 3],
+        hi_max: [f32::NEG_INFINITY; 3],
+    };
+
+    fn child(self, axis: usize, split: f32, first: bool, low: bool) -> Order {
+        let mut o = self;
+        if first {
+            if low {
+                o.lo_min[axis] = o.lo_min[axis].min(split);
+            } else {
+                o.hi_max[axis] = o.hi_max[axis].max(split);
+            }
+        }
+        o
+    }
+
+    /// `start`: the segment's first point `o + tmin·d`; `err`: a bound on its rounding error.
+    #[inline]
+    fn allows(&self, start: Vec3, err: f32, d: Vec3) -> bool {
+        for a in 0..3 {
+            if !(d[a] >= 0.0 || start[a] + err <= self.lo_min[a]) {
+                return false;
+            }
+            if !(d[a] <= 0.0 || start[a] - err >= self.hi_max[a]) {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+/// One conic packet: 40 bytes.
+#[derive(Clone, Copy, Debug, Default)]
+struct PackedCone {
+    axis: Vec3,
+    /// Boxes this close to the apex count as hit (shadow cones; 0 for camera cones).
+    near: f32,
+    /// The packet's rays lie within this distance of the apex (shadow cones: their origins;
+    /// +inf for camera cones).
+    reach: f32,
+    /// cos² of the half-angle, in f64 (f32 cannot resolve the angular margin near 1).
+    cos2: f64,
+    /// Termination bits, one per ray of the packet.
+    done: u64,
+}
+
+/// How the rays of a task map to packets.
+#[derive(Clone, Copy, Debug)]
+enum Packets {
+    /// No packets.
+    None,
+    /// Pinhole band: `width` pixels per row, `rows` rows, 8×8 tiles, `tw` tiles per row.
+    Tiles {
+        width: usize,
+        rows: usize,
+        tw: usize,
+    },
+    /// Shadow rays: 64 consecutive rays per cone.
+    Runs { len: usize },
+}
+
+impl Packets {
+    fn count(&self) -> usize {
+        match *self {
+            Packets::None => 0,
+            Packets::Tiles { rows, tw, .. } => tw * rows.div_ceil(8),
+            Packets::Runs { len } => len.div_ceil(64),
+        }
+    }
+
+    /// Local ray `k` → (packet, bit). `perm` is the shadow-ray order (see [`Task::perm`]).
+    #[inline]
+    fn of(&self, k: usize, perm: &[u64]) -> (usize, u32) {
+        match *self {
+            Packets::None => (0, 0),
+            Packets::Tiles { width, tw, .. } => {
+                let (y, x) = (k / width, k % width);
+                ((y / 8) * tw + x / 8, ((y % 8) * 8 + x % 8) as u32)
+            }
+            Packets::Runs { .. } => {
+                let j = (perm[k] >> 32) as usize;
+                (j / 64, (j % 64) as u32)
+            }
+        }
+    }
+
+    /// Calls `f(k, bit)` for every ray of packet `c`.
+    #[inline]
+    fn for_each(&self, c: usize, perm: &[u64], mut f: impl FnMut(usize, u32)) {
+        match *self {
+            Packets::None => {}
+            Packets::Tiles { width, rows, tw } => {
+                let (ty, tx) = (c / tw, c % tw);
+                for y in ty * 8..(ty * 8 + 8).min(rows) {
+                    for x in tx * 8..(tx * 8 + 8).min(width) {
+                        f(y * width + x, ((y % 8) * 8 + x % 8) as u32);
+                    }
+                }
+            }
+            Packets::Runs { len } => {
+                let (a, b) = (c * 64, (c * 64 + 64).min(len));
+                for (bit, &e) in perm[a..b].iter().enumerate() {
+                    f(e as u32 as usize, bit as u32);
+                }
+            }
+        }
+    }
+
+    /// Bits of the rays packet `c` has.
+    fn full_mask(&self, c: usize, perm: &[u64]) -> u64 {
+        let mut m = 0u64;
+        self.for_each(c, perm, |_, b| m |= 1 << b);
+        m
+    }
+}
+
+/// How to choose the first child.
+#[derive(Clone, Copy, Debug)]
+enum View {
+    /// Majority sign of the split-axis direction (§3.4).
+    Majority,
+    /// Rays leave this point (camera): its side first.
+    From(Vec3),
+    /// Rays go to this point (light): the other side first.
+    To(Vec3),
+}
+
+/// The per-call plan shared by all tasks.
+#[derive(Clone, Copy, Debug)]
+struct Plan {
+    terminate: bool,
+    packets: bool,
+    view: View,
+    chunk: usize,
+}
+
+/// One task: a disjoint share of the rays with its own index lists.
+struct Task<'a, const ANY: bool> {
+    cfg: &'a Config,
+    tris: &'a TriangleSoup,
+    lo: [&'a [f32]; 3],
+    hi: [&'a [f32]; 3],
+    rays: &'a RayBatch,
+    /// First ray of the share.
+    base: usize,
+    // Closest-hit outputs (empty for ANY); `t` doubles as the z-buffer: it holds `tmax` until
+    // a hit is found and is reset to +inf for misses at the end.
+    t: &'a mut [f32],
+    prim: &'a mut [u32],
+    u: &'a mut [f32],
+    v: &'a mut [f32],
+    // Any-hit output (empty for closest).
+    occ: &'a mut [bool],
+    tri_idx: Vec<u32>,
+    ray_idx: Vec<u32>,
+    /// Terminated-ray pivot (§3.2): `ray_idx[..rterm]` are final.
+    rterm: usize,
+    terminate: bool,
+    view: View,
+    packets: Packets,
+    apex: Vec3,
+    cones: Vec<PackedCone>,
+    cone_idx: Vec<u32>,
+    /// Shadow packets: rays grouped by a Morton code of their origin so that 64 consecutive
+    /// slots are close together (compact cones). Entry `x`: low 32 bits = the ray in slot `x`,
+    /// high 32 bits = the slot of ray `x`. Empty otherwise.
+    perm: Vec<u64>,
+    /// Terminated-cone pivot.
+    cterm: usize,
+    st: Stats,
+}
+
+impl<'a, const ANY: bool> Task<'a, ANY> {
+    #[inline(always)]
+    fn best_cut(&self, r: usize) -> f32 {
+        if ANY {
+            self.rays.tmax[self.base + r]
+        } else {
+            widen(self.t[r])
+        }
+    }
+
+    /// In-place filter of `ray_idx[rterm..rend]` against `b` (full slab test, §3.2: no stacked
+    /// intervals). Returns the new end.
+    fn partition_rays(&mut self, b: &Aabb, rend: usize) -> usize {
+        let mut k = self.rterm;
+        for p in self.rterm..rend {
+            let r = self.ray_idx[p] as usize;
+            let i = self.base + r;
+            let d = self.rays.dir(i);
+            if b.ray_interval(
+                self.rays.origin(i),
+                Vec3::ONE / d,
+                self.rays.tmin[i],
+                self.best_cut(r),
+            )
+            .is_some()
+            {
+                self.ray_idx.swap(k, p);
+                k += 1;
+            }
+        }
+        self.st.ray_box += (rend - self.rterm) as u64;
+        k
+    }
+
+    /// In-place filter of `tri_idx[..nt]` for the child on side `low` of `split`: the split-plane
+    /// test on the min/max lists, plus the edge axes on small streams. Returns the new count and
+    /// how many triangles the plane test would also send to the other child.
+    fn partition_tris(
+        &mut self,
+        nt: usize,
+        axis: usize,
+        split: f32,
+        low: bool,
+        child: &Aabb,
+    ) -> (usize, usize) {
+        let (lo, hi) = (self.lo[axis], self.hi[axis]);
+        let sat = nt < self.cfg.sat_threshold;
+        let mut k = 0;
+        let mut other = 0;
+        let mut sat_tests = 0u64;
+        for p in 0..nt {
+            let t = self.tri_idx[p] as usize;
+            let (l, h) = (lo[t], hi[t]);
+            let (inside, opposite) = if low {
+                (l <= split, h >= split)
+            } else {
+                (h >= split, l <= split)
+            };
+            other += opposite as usize;
+            let keep = inside
+                && (!sat || {
+                    sat_tests += 1;
+                    tri_box_edge_axes(self.tris.v0[t], self.tris.v1[t], self.tris.v2[t], child)
+                });
+            if keep {
+                self.tri_idx.swap(k, p);
+                k += 1;
+            }
+        }
+        self.st.tri_box += nt as u64 + sat_tests;
+        (k, other)
+    }
+
+    /// §3.6: the split axis and position, or `None` when the cell cannot be split.
+    fn choose_split(&self, cell: &Aabb, nt: usize) -> Option<(usize, f32)> {
+        let axis = cell.longest_axis();
+        let (mn, mx) = (cell.min[axis], cell.max[axis]);
+        let median = mn + (mx - mn) * 0.5;
+        let mut s = median;
+        let stride = self.cfg.split_sample_stride.max(1);
+        if nt >= self.cfg.split_sample_threshold {
+            let (lo, hi) = (self.lo[axis], self.hi[axis]);
+            let (mut sum, mut n) = (0.0f64, 0u32);
+            for p in (0..nt).step_by(stride) {
+                let t = self.tri_idx[p] as usize;
+                if lo[t] <= hi[t] {
+                    sum += 0.5 * (lo[t].clamp(mn, mx) as f64 + hi[t].clamp(mn, mx) as f64);
+                    n += 1;
+                }
+            }
+            if n > 0 {
+                s = (sum / n as f64) as f32;
+            }
+        }
+        if !(s > mn && s < mx) {
+            s = median;
+        }
+        (s > mn && s < mx).then_some((axis, s))
+    }
+
+    /// Whether the low child goes first at a node of ray range `[rterm, rend)`.
+    fn low_first(&self, axis: usize, split: f32, rend: usize) -> bool {
+        match self.view {
+            View::From(p) if p[axis] != split => p[axis] < split,
+            View::To(p) if p[axis] != split => p[axis] > split,
+            _ => {
+                // Majority of the split-axis direction signs over (a sample of) the rays.
+                let n = rend - self.rterm;
+                let step = (n / 64).max(1);
+                let (mut pos, mut neg) = (0, 0);
+                for p in (self.rterm..rend).step_by(step) {
+                    let dx = self.rays.dir(self.base + self.ray_idx[p] as usize)[axis];
+                    pos += (dx > 0.0) as u32;
+                    neg += (dx < 0.0) as u32;
+                }
+                pos >= neg
+            }
+        }
+    }
+
+    /// Algorithm 1 on rays `ray_idx[rterm..rend]` and triangles `tri_idx[..nt]` in `cell`.
+    fn ray_rec(&mut self, cell: Aabb, nt: usize, rend: usize, depth: u32, ord: Order) {
+        self.st.nodes += 1;
+        let nr = rend - self.rterm;
+        if nr == 0 || nt == 0 {
+            return;
+        }
+        if nr < self.cfg.r_limit || nt < self.cfg.p_limit || depth >= self.cfg.max_depth {
+            return self.leaf(&cell, nt, rend, ord);
+        }
+        let Some((axis, split)) = self.choose_split(&cell, nt) else {
+            return self.leaf(&cell, nt, rend, ord);
+        };
+        let low_first = self.low_first(axis, split, rend);
+        for (n, low) in [(0, low_first), (1, !low_first)] {
+            let child = half(&cell, axis, split, low);
+            let (nt2, other) = self.partition_tris(nt, axis, split, low, &child);
+            if n == 0 && nt2 == nt && other == nt {
+                // No progress: every triangle straddles the plane (§3.6 guard).
+                return self.leaf(&cell, nt, rend, ord);
+            }
+            // `rend` is still the parent's end; `rterm` may have moved (terminated rays).
+            let rend2 = self.partition_rays(&child, rend);
+            self.ray_rec(
+                child,
+                nt2,
+                rend2,
+                depth + 1,
+                ord.child(axis, split, n == 0, low),
+            );
+        }
+    }
+
+    /// The naive leaf (§3.2): every active ray against every triangle, then early termination.
+    fn leaf(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
+        self.st.leaves += 1;
+        let tris = self.tris;
+        let mut p = self.rterm;
+        while p < rend {
+            let r = self.ray_idx[p] as usize;
+            let i = self.base + r;
+            let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+            let done = if ANY {
+                let tmax = self.rays.tmax[i];
+                let mut hit = false;
+                for q in 0..nt {
+                    let t = self.tri_idx[q] as usize;
+                    self.st.ray_tri += 1;
+                    if intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax)
+                        .is_some()
+                    {
+                        hit = true;
+                        break;
+                    }
+                }
+                if hit {
+                    self.occ[r] = true;
+                }
+                // Any hit is final, in any order.
+                hit
+            } else {
+                let (mut bt, mut bp, mut bu, mut bv) =
+                    (self.t[r], self.prim[r], self.u[r], self.v[r]);
+                for q in 0..nt {
+                    let t = self.tri_idx[q];
+                    let tu = t as usize;
+                    if let Some(h) =
+                        intersect_triangle(o, d, tris.v0[tu], tris.v1[tu], tris.v2[tu], tmin, bt)
+                    {
+                        if closer(h.t, t, bt, bp) {
+                            (bt, bp, bu, bv) = (h.t, t, h.u, h.v);
+                        }
+                    }
+                }
+                self.st.ray_tri += nt as u64;
+                (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
+                self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
+            };
+            if done {
+                self.ray_idx.swap(p, self.rterm);
+                self.rterm += 1;
+            }
+            p += 1;
+        }
+    }
+
+    /// True when the hit at `bt` is final: the hit point lies inside this leaf cell, away from
+    /// its faces by a margin (so no triangle of a later cell can tie it after rounding), and
+    /// every earlier stretch of the ray was visited ([`Order`]). Inside the (convex) cell means
+    /// `t_enter ≤ bt ≤ t_exit`; testing the point costs no ray/box test (as in the paper, whose
+    /// packet mode reports almost no ray/box tests).
+    #[inline]
+    fn final_hit(cell: &Aabb, o: Vec3, d: Vec3, tmin: f32, bt: f32, ord: &Order) -> bool {
+        let (start, err) = if tmin == 0.0 {
+            (o, 0.0)
+        } else {
+            let s = o + d * tmin;
+            (
+                s,
+                (o.abs() + (d * tmin).abs()).max_element() * (4.0 * f32::EPSILON),
+            )
+        };
+        if !ord.allows(start, err, d) {
+            return false;
+        }
+        let step = d * bt;
+        let p = o + step;
+        // Per axis: rounding of p, plus a gap of 2·TERM_GAP·|bt| in t along that axis.
+        let m = (o.abs() + step.abs()) * (8.0 * f32::EPSILON) + step.abs() * (2.0 * TERM_GAP);
+        (p - m).cmpge(cell.min).all() && (p + m).cmple(cell.max).all()
+    }
+
+    /// In-place filter of the active cones `cone_idx[cterm..cend]` against `b`.
+    fn partition_cones(&mut self, b: &Aabb, cend: usize) -> usize {
+        let mut k = self.cterm;
+        for p in self.cterm..cend {
+            let c = &self.cones[self.cone_idx[p] as usize];
+            if cone_box_overlap(self.apex, c.axis, c.cos2, c.near, c.reach, b) {
+                self.cone_idx.swap(k, p);
+                k += 1;
+            }
+        }
+        self.st.cone_box += (cend - self.cterm) as u64;
+        k
+    }
+
+    /// Algorithm 2 on cones `cone_idx[cterm..cend]`.
+    fn cone_rec(&mut self, cell: Aabb, nt: usize, cend: usize, depth: u32, ord: Order) {
+        self.st.nodes += 1;
+        let nc = cend - self.cterm;
+        if nc == 0 || nt == 0 {
+            return;
+        }
+        if nc < self.cfg.c_limit || nt < self.cfg.p_limit || depth >= self.cfg.max_depth {
+            return self.flush(cell, nt, cend, depth, ord);
+        }
+        let Some((axis, split)) = self.choose_split(&cell, nt) else {
+            return self.flush(cell, nt, cend, depth, ord);
+        };
+        let low_first = match self.view {
+            View::From(p) => p[axis] <= split,
+            View::To(p) => p[axis] >= split,
+            View::Majority => true,
+        };
+        for (n, low) in [(0, low_first), (1, !low_first)] {
+            let child = half(&cell, axis, split, low);
+            let (nt2, other) = self.partition_tris(nt, axis, split, low, &child);
+            if n == 0 && nt2 == nt && other == nt {
+                return self.flush(cell, nt, cend, depth, ord);
+            }
+            let cend2 = self.partition_cones(&child, cend);
+            self.cone_rec(
+                child,
+                nt2,
+                cend2,
+                depth + 1,
+                ord.child(axis, split, n == 0, low),
+            );
+        }
+    }
+
+    /// FlushCones (Algorithm 2): the active cones' live rays that enter `cell` go to the ray
+    /// list after `rterm`, Algorithm 1 runs, then terminated rays set their cone bits and fully
+    /// terminated cones move behind the terminated-cone pivot.
+    fn flush(&mut self, cell: Aabb, nt: usize, cend: usize, depth: u32, ord: Order) {
+        let start = self.rterm;
+        let mut rend = start;
+        let packets = self.packets;
+        for q in self.cterm..cend {
+            let c = self.cone_idx[q] as usize;
+            let done = self.cones[c].done;
+            let filter = self.cfg.flush_filter;
+            let perm = std::mem::take(&mut self.perm);
+            packets.for_each(c, &perm, |k, bit| {
+                // Live rays only, and (optionally) only those entering the cell; unfiltered
+                // rays are still correct (Algorithm 1 filters them if it divides further, and
+                // a naive leaf is correct for any ray).
+                if done & (1u64 << bit) != 0 {
+                    return;
+                }
+                if filter {
+                    let i = self.base + k;
+                    self.st.ray_box += 1;
+                    let cut = if ANY {
+                        self.rays.tmax[i]
+                    } else {
+                        widen(self.t[k])
+                    };
+                    let (o, inv) = (self.rays.origin(i), Vec3::ONE / self.rays.dir(i));
+                    if cell.ray_interval(o, inv, self.rays.tmin[i], cut).is_none() {
+                        return;
+                    }
+                }
+                self.ray_idx[rend] = k as u32;
+                rend += 1;
+            });
+            self.perm = perm;
+        }
+        self.ray_rec(cell, nt, rend, depth, ord);
+        for p in start..self.rterm {
+            let (c, bit) = packets.of(self.ray_idx[p] as usize, &self.perm);
+            self.cones[c].done |= 1u64 << bit;
+        }
+        let mut q = self.cterm;
+        while q < cend {
+            let c = self.cone_idx[q] as usize;
+            if self.cones[c].done == packets.full_mask(c, &self.perm) {
+                self.cone_idx.swap(q, self.cterm);
+                self.cterm += 1;
+            }
+            q += 1;
+        }
+    }
+
+    /// Builds the cone of packet `c`, or `None` when its rays are not coherent enough.
+    fn build_cone(&self, c: usize, max_angle: f32) -> Option<PackedCone> {
+        let apex = self.apex;
+        let rays = self.rays;
+        let base = self.base;
+        let mut ok = true;
+        let mut far = 0.0f64;
+        let mut reach = 0.0f64;
+        let shadow = matches!(self.packets, Packets::Runs { .. });
+        self.packets.for_each(c, &self.perm, |k, _| {
+            let i = base + k;
+            let (o, d) = (rays.origin(i), rays.dir(i));
+            if shadow {
+                // Segment o → o + d with t in [0, 1] must end (up to rounding) at the light.
+                ok &= rays.tmin[i] >= 0.0 && rays.tmax[i] <= 1.0 && o != apex;
+                far = far.max((o.as_dvec3() + d.as_dvec3() - apex.as_dvec3()).length());
+                reach = reach.max((o.as_dvec3() - apex.as_dvec3()).length());
+            } else {
+                ok &= o == apex && rays.tmin[i] >= 0.0;
+            }
+            ok &= d.is_finite() && d != Vec3::ZERO;
+        });
+        if !ok {
+            return None;
+        }
+        let dirs = |k: usize| {
+            let i = base + k;
+            if shadow {
+                rays.origin(i) - apex
+            } else {
+                rays.dir(i)
+            }
+        };
+        // Collect the packet's directions without allocating: iterate twice via for_each.
+        let mut buf = [Vec3::ZERO; 64];
+        let mut n = 0;
+        self.packets.for_each(c, &self.perm, |k, _| {
+            buf[n] = dirs(k);
+            n += 1;
+        });
+        let cone = Cone::around_directions(apex, buf[..n].iter().copied())?;
+        let (mut half, mut near, mut cut) = (cone.half_angle, 0.0f32, f32::INFINITY);
+        if shadow {
+            // The rays end `far` away from the light, not on it: points farther than
+            // `near = 2^14·far` from the light deviate from the ideal direction by less than
+            // 2^-14 rad, covered by widening the angle; boxes closer than `near` count as hit.
+            let scale = apex.abs().max_element() as f64 * (f32::EPSILON as f64);
+            near = ((far + 4.0 * scale) * 16384.0) as f32;
+            half += 2.0 / 16384.0;
+            // Segments end at their origins: nothing beyond `reach` (+ the rounding `far`).
+            cut = ((reach + 2.0 * far) * (1.0 + 1e-6)) as f32 + near;
+        }
+        // NaN angles are refused too.
+        if half.is_nan() || half > max_angle || half >= std::f32::consts::FRAC_PI_2 {
+            return None;
+        }
+        let cos = (half as f64).cos();
+        Some(PackedCone {
+            axis: cone.axis,
+            near,
+            reach: cut,
+            cos2: cos * cos,
+            done: 0,
+        })
+    }
+}
+
+/// The shadow-packet order of rays `range` (see [`Task::perm`]): sorted by a 30-bit Morton code
+/// of the origin in `bounds` (in place, no further allocation), then each entry's high half is
+/// overwritten with the inverse permutation.
+fn morton_order(rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64> {
+    fn spread(x: u32) -> u64 {
+        let mut x = (x & 0x3ff) as u64;
+        x = (x | x << 16) & 0x0300_00ff;
+        x = (x | x << 8) & 0x0300_f00f;
+        x = (x | x << 4) & 0x030c_30c3;
+        (x | x << 2) & 0x0924_9249
+    }
+    let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
+    let mut v: Vec<u64> = range
+        .clone()
+        .enumerate()
+        .map(|(k, i)| {
+            let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
+            let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
+            code << 32 | k as u64
+        })
+        .collect();
+    v.sort_unstable();
+    for j in 0..v.len() {
+        let k = v[j] as u32 as usize;
+        v[k] = (v[k] & 0xffff_ffff) | (j as u64) << 32;
+    }
+    v
+}
+
+/// The low or high half of `cell` at `split` on `axis` (both closed, sharing the plane).
+#[inline]
+fn half(cell: &Aabb, axis: usize, split: f32, low: bool) -> Aabb {
+    let mut c = *cell;
+    if low {
+        c.max[axis] = split;
+    } else {
+        c.min[axis] = split;
+    }
+    c
+}
+
+impl Dacrt {
+    fn plan(&self, rays: &RayBatch) -> (Plan, Packets) {
+        let k = self.tasks();
+        let n = rays.len();
+        let mode = self.cfg.mode;
+        let packets_ok = matches!(mode, Mode::Auto | Mode::Packet);
+        match rays.layout {
+            RayLayout::Pinhole { eye, width, height }
+                if width as usize * height as usize == n && n > 0 =>
+            {
+                let (w, h) = (width as usize, height as usize);
+                // Bands of whole tile rows.
+                let rows = h.div_ceil(8).div_ceil(k) * 8;
+                let plan = Plan {
+                    terminate: mode != Mode::Random,
+                    packets: packets_ok,
+                    view: View::From(eye),
+                    chunk: rows * w,
+                };
+                (
+                    plan,
+                    Packets::Tiles {
+                        width: w,
+                        rows,
+                        tw: w.div_ceil(8),
+                    },
+                )
+            }
+            RayLayout::ToPoint { target } => {
+                let chunk = n.div_ceil(64).div_ceil(k).max(1) * 64;
+                let plan = Plan {
+                    terminate: mode != Mode::Random,
+                    packets: packets_ok,
+                    view: View::To(target),
+                    chunk,
+                };
+                (plan, Packets::Runs { len: chunk })
+            }
+            _ => {
+                let plan = Plan {
+                    terminate: mode == Mode::Ray || mode == Mode::Packet,
+                    packets: false,
+                    view: View::Majority,
+                    chunk: n.div_ceil(k).max(1),
+                };
+                (plan, Packets::None)
+            }
+        }
+    }
+
+    /// Runs one task over rays `range` (outputs already reset to misses).
+    #[allow(clippy::too_many_arguments)]
+    fn run_task<const ANY: bool>(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        range: Range<usize>,
+        plan: &Plan,
+        packets: Packets,
+        t: &mut [f32],
+        prim: &mut [u32],
+        u: &mut [f32],
+        v: &mut [f32],
+        occ: &mut [bool],
+    ) -> Stats {
+        let ntri = scene.len();
+        let len = range.len();
+        // Restrict the packet layout to this task's share (the last band may be shorter).
+        let packets = match (plan.packets, packets) {
+            (true, Packets::Tiles { width, tw, .. }) => Packets::Tiles {
+                width,
+                rows: len / width,
+                tw,
+            },
+            (true, Packets::Runs { .. }) => Packets::Runs { len },
+            _ => Packets::None,
+        };
+        let apex = match plan.view {
+            View::From(p) | View::To(p) => p,
+            View::Majority => Vec3::ZERO,
+        };
+        let ncones = packets.count();
+        let mut task = Task::<ANY> {
+            cfg: &self.cfg,
+            tris: scene.triangles(),
+            lo: [&self.lo[0], &self.lo[1], &self.lo[2]],
+            hi: [&self.hi[0], &self.hi[1], &self.hi[2]],
+            rays,
+            base: range.start,
+            t,
+            prim,
+            u,
+            v,
+            occ,
+            tri_idx: (0..ntri as u32).collect(),
+            ray_idx: vec![0u32; len],
+            rterm: 0,
+            terminate: plan.terminate,
+            view: plan.view,
+            packets,
+            apex,
+            cones: vec![PackedCone::default(); ncones],
+            cone_idx: Vec::with_capacity(ncones),
+            perm: match packets {
+                Packets::Runs { .. } => morton_order(rays, range.clone(), &scene.bounds()),
+                _ => Vec::new(),
+            },
+            cterm: 0,
+            st: Stats::default(),
+        };
+        task.st.rays = len as u64;
+        task.st.peak_bytes = (4 * ntri + 4 * len + 44 * ncones + 8 * task.perm.len()) as u64;
+        if !ANY {
+            for k in 0..len {
+                task.t[k] = rays.tmax[range.start + k];
+            }
+        }
+        let root = scene.bounds();
+        let max_angle = match packets {
+            Packets::Runs { .. } => self.cfg.max_shadow_cone_deg,
+            _ => self.cfg.max_cone_deg,
+        }
+        .to_radians();
+        // Packets first: coherent ones become cones, the rays of the others go to the ray list.
+        let mut rend = 0;
+        for c in 0..ncones {
+            match task.build_cone(c, max_angle) {
+                Some(cone) => {
+                    task.cones[c] = cone;
+                    task.cone_idx.push(c as u32);
+                }
+                None => packets.for_each(c, &task.perm, |k, _| {
+                    task.ray_idx[rend] = k as u32;
+                    rend += 1;
+                }),
+            }
+        }
+        if ncones == 0 {
+            for k in 0..len {
+                task.ray_idx[k] = k as u32;
+            }
+            rend = len;
+        }
+        // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root.
+        let rend = task.partition_rays(&root, rend);
+        task.ray_rec(root, ntri, rend, 0, Order::NONE);
+        if !task.cone_idx.is_empty() {
+            // Cones: Algorithm 2 from the root; the ray list is free again.
+            task.rterm = 0;
+            for k in 0..ntri {
+                task.tri_idx[k] = k as u32;
+            }
+            let cend = task.cone_idx.len();
+            let cend = task.partition_cones(&root, cend);
+            task.cone_rec(root, ntri, cend, 0, Order::NONE);
+        }
+        if !ANY {
+            for k in 0..len {
+                if task.prim[k] == MISS {
+                    task.t[k] = f32::INFINITY;
+                }
+            }
+        }
+        task.st
+    }
+}
+
+impl Tracer for Dacrt {
+    fn name(&self) -> &'static str {
+        "dacrt"
+    }
+
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<Stats> {
+        let tris = scene.triangles();
+        let n = tris.len();
+        for a in 0..3 {
+            for v in [&mut self.lo[a], &mut self.hi[a]] {
+                v.clear();
+                v.reserve_exact(n);
+            }
+        }
+        for t in 0..n {
+            let [a, b, c] = tris.get(t);
+            let degenerate = a == b && b == c;
+            let (mn, mx) = if degenerate {
+                (Vec3::INFINITY, Vec3::NEG_INFINITY)
+            } else {
+                (a.min(b).min(c), a.max(b).max(c))
+            };
+            for k in 0..3 {
+                self.lo[k].push(mn[k]);
+                self.hi[k].push(mx[k]);
+            }
+        }
+        self.scene = Some(scene);
+        Ok(Stats {
+            peak_bytes: self.bytes() as u64,
+            ..Stats::default()
+        })
+    }
+
+    fn intersect(&self, rays: &RayBatch, hits: &mut HitBatch) -> Stats {
+        let scene = match self.scene.as_deref() {
+            Some(s) if !s.is_empty() && !rays.is_empty() => s,
+            _ => {
+                hits.reset(rays.len());
+                return Stats {
+                    rays: rays.len() as u64,
+                    ..Stats::default()
+                };
+            }
+        };
+        let (plan, packets) = self.plan(rays);
+        par_ray_chunks(rays, hits, plan.chunk, |range, out| {
+            self.run_task::<false>(
+                scene,
+                rays,
+                range,
+                &plan,
+                packets,
+                out.t,
+                out.prim,
+                out.u,
+                out.v,
+                &mut [],
+            )
+        })
+    }
+
+    fn occluded(&self, rays: &RayBatch, occluded: &mut Vec<bool>) -> Stats {
+        let scene = match self.scene.as_deref() {
+            Some(s) if !s.is_empty() && !rays.is_empty() => s,
+            _ => {
+                occluded.clear();
+                occluded.resize(rays.len(), false);
+                return Stats {
+                    rays: rays.len() as u64,
+                    ..Stats::default()
+                };
+            }
+        };
+        let (plan, packets) = self.plan(rays);
+        par_occlusion_chunks(rays, occluded, plan.chunk, |range, out| {
+            self.run_task::<true>(
+                scene,
+                rays,
+                range,
+                &plan,
+                packets,
+                &mut [],
+                &mut [],
+                &mut [],
+                &mut [],
+                out,
+            )
+        })
+    }
+
+    fn bytes(&self) -> usize {
+        self.lo
+            .iter()
+            .chain(self.hi.iter())
+            .map(|v| v.capacity() * 4)
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_defaults_are_the_papers() {
+        let c: Config = crate::tracers::config_from_opts("dacrt", &[]).unwrap();
+        assert_eq!(c, Config::default());
+        assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 100));
+        assert_eq!(
+            (c.split_sample_threshold, c.split_sample_stride),
+            (10_000, 50)
+        );
+        let o = [("mode".to_string(), "random".to_string())];
+        let c: Config = crate::tracers::config_from_opts("dacrt", &o).unwrap();
+        assert_eq!(c.mode, Mode::Random);
+    }
+
+    #[test]
+    fn packet_maps_are_inverse() {
+        let rays = crate::rays::generate::random_in_box(&Aabb::new(Vec3::ZERO, Vec3::ONE), 1000, 1);
+        let perm = morton_order(&rays, 0..1000, &Aabb::new(Vec3::ZERO, Vec3::ONE));
+        for (packets, n) in [
+            (
+                Packets::Tiles {
+                    width: 37,
+                    rows: 27,
+                    tw: 5,
+                },
+                37 * 27,
+            ),
+            (Packets::Runs { len: 1000 }, 1000),
+        ] {
+            let mut seen = vec![false; n];
+            for c in 0..packets.count() {
+                let mut n = 0;
+                packets.for_each(c, &perm, |k, bit| {
+                    assert!(!seen[k]);
+                    seen[k] = true;
+                    assert_eq!(packets.of(k, &perm), (c, bit));
+                    n += 1;
+                });
+                assert_eq!(packets.full_mask(c, &perm).count_ones(), n);
+            }
+            assert!(seen.iter().all(|&s| s), "{packets:?}");
+        }
+    }
+
+    #[test]
+    fn order_rule() {
+        // Low child first at x = 0: rays must go +x, or start at or below the plane.
+        let o = Order::NONE.child(0, 0.0, true, true);
+        assert!(o.allows(Vec3::new(-1.0, 0.0, 0.0), 0.0, Vec3::X));
+        assert!(o.allows(Vec3::new(-1.0, 0.0, 0.0), 0.0, -Vec3::X));
+        assert!(o.allows(Vec3::ZERO, 0.0, -Vec3::X));
+        assert!(!o.allows(Vec3::new(1.0, 0.0, 0.0), 0.0, -Vec3::X));
+        assert!(!o.allows(Vec3::ZERO, 1e-3, -Vec3::X));
+        // Second children add nothing.
+        let o = Order::NONE.child(1, 0.0, false, true);
+        assert!(o.allows(Vec3::new(0.0, 5.0, 0.0), 0.0, -Vec3::Y));
+        // High first: rays must go −y, or start at or above the plane.
+        let o = Order::NONE.child(1, 0.5, true, false);
+        assert!(o.allows(Vec3::new(0.0, 0.7, 0.0), 0.0, Vec3::Y));
+        assert!(!o.allows(Vec3::new(0.0, 0.2, 0.0), 0.0, Vec3::Y));
+        assert!(!o.allows(Vec3::NAN, 0.0, Vec3::NAN));
+    }
+}

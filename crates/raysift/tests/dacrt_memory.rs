@@ -1,0 +1,148 @@
+//! DACRT's memory is deterministic (Mora 2011, §1 and §3.2): the bytes the tracer allocates are
+//! a linear function `a·T + b·R + c` of the triangle and ray counts, identical between runs and
+//! independent of the scene's shape. Checked with a counting global allocator on two very
+//! different scenes of equal size (a random soup and an icosphere), in every mode.
+
+use raysift::rays::generate::random_in_box;
+use raysift::rays::{Camera, RayLayout};
+use raysift::scene::{procedural, Scene};
+use raysift::{tracers, HitBatch, RayBatch};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+use std::sync::Arc;
+
+/// Counts bytes requested (total, and currently live) and forwards to the system allocator.
+struct Counting;
+
+static TOTAL: AtomicUsize = AtomicUsize::new(0);
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: every method forwards to `System` with the caller's layout and pointer unchanged, so
+// `System`'s guarantees hold; the counters are plain atomics and never affect the allocation.
+// Exercised by every allocation of this test binary (the test below checks the counts).
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        TOTAL.fetch_add(l.size(), Relaxed);
+        let now = LIVE.fetch_add(l.size(), Relaxed) + l.size();
+        PEAK.fetch_max(now, Relaxed);
+        System.alloc(l)
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        LIVE.fetch_sub(l.size(), Relaxed);
+        System.dealloc(p, l)
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        TOTAL.fetch_add(new, Relaxed);
+        let now = LIVE.fetch_add(new, Relaxed) + new;
+        PEAK.fetch_max(now, Relaxed);
+        LIVE.fetch_sub(l.size(), Relaxed);
+        System.realloc(p, l, new)
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+/// (total bytes allocated, peak live bytes above the start) while running `f`.
+fn measure(f: impl FnOnce()) -> (usize, usize) {
+    let (t0, l0) = (TOTAL.load(Relaxed), LIVE.load(Relaxed));
+    PEAK.store(l0, Relaxed);
+    f();
+    (TOTAL.load(Relaxed) - t0, PEAK.load(Relaxed) - l0)
+}
+
+struct Case {
+    prepare: usize,
+    intersect: (usize, usize),
+    occluded: (usize, usize),
+}
+
+fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize) -> Case {
+    let opts = vec![
+        ("mode".to_string(), mode.to_string()),
+        ("tasks".to_string(), tasks.to_string()),
+    ];
+    let mut d = tracers::create("dacrt", &opts).unwrap();
+    // Outputs are the caller's: allocate them outside the measurement.
+    let mut hits = HitBatch::new(rays.len());
+    let mut occ = vec![false; rays.len()];
+    // Warm up rayon's pool and thread-locals.
+    d.prepare(scene.clone()).unwrap();
+    d.intersect(rays, &mut hits);
+    let mut d = tracers::create("dacrt", &opts).unwrap();
+    let (prepare, _) = measure(|| {
+        d.prepare(scene.clone()).unwrap();
+    });
+    let intersect = measure(|| {
+        d.intersect(rays, &mut hits);
+    });
+    let occluded = measure(|| {
+        d.occluded(rays, &mut occ);
+    });
+    Case {
+        prepare,
+        intersect,
+        occluded,
+    }
+}
+
+#[test]
+fn dacrt_memory_is_a_deterministic_linear_function() {
+    // Equal triangle counts, very different shapes: 20·4^5 = 20480.
+    let t = 20_480;
+    let soup = Arc::new(procedural::soup(t, 3));
+    let sphere = Arc::new(procedural::icosphere(t));
+    assert_eq!((soup.len(), sphere.len()), (t, t));
+    let (w, h) = (64u32, 48u32);
+    let r = (w * h) as usize;
+    for tasks in [1usize, 2] {
+        let mut seen = Vec::new();
+        for scene in [&soup, &sphere] {
+            let cam = Camera::framing(&scene.bounds(), 45.0, w as f32 / h as f32).rays(w, h);
+            let random = random_in_box(&scene.bounds(), r, 5);
+            // Shadow rays to a point light (segments ending on it).
+            let light = scene.bounds().max + glam::Vec3::ONE;
+            let mut shadow = random.clone();
+            for i in 0..r {
+                let d = light - shadow.origin(i);
+                (shadow.dx[i], shadow.dy[i], shadow.dz[i]) = (d.x, d.y, d.z);
+                shadow.tmax[i] = 1.0;
+            }
+            shadow.layout = RayLayout::ToPoint { target: light };
+            for (mode, rays) in [
+                ("ray", &cam),
+                ("random", &random),
+                ("packet", &cam),
+                ("auto", &random),
+                ("shadow", &shadow),
+            ] {
+                let c = run(
+                    scene,
+                    rays,
+                    if mode == "shadow" { "packet" } else { mode },
+                    tasks,
+                );
+                // Held between calls: six f32 lists of T.
+                assert_eq!(c.prepare, 24 * t, "prepare {mode}");
+                // Per call: K triangle index lists, one ray index list, and for packets 44
+                // bytes per 8×8 tile or per 64 shadow rays (here R/64 either way), plus the
+                // shadow rays' 8-byte Morton order.
+                let cones = if mode == "packet" || mode == "shadow" {
+                    r / 64
+                } else {
+                    0
+                };
+                let order = if mode == "shadow" { 8 * r } else { 0 };
+                let want = 4 * t * tasks + 4 * r + 44 * cones + order;
+                assert_eq!(c.intersect.0, want, "intersect {mode} tasks {tasks}");
+                assert_eq!(c.occluded.0, want, "occluded {mode} tasks {tasks}");
+                assert!(c.intersect.1 <= want && c.occluded.1 <= want);
+                seen.push((mode, c.intersect.0));
+            }
+        }
+        // Same numbers for both scenes (shape-independent).
+        let (a, b) = seen.split_at(seen.len() / 2);
+        assert_eq!(a, b);
+    }
+}

@@ -1,0 +1,87 @@
+//! Bytes per triangle and per ray, as documented in ARCHITECTURE.md and each tracer's module doc.
+
+use raysift::scene::{procedural, Scene};
+use raysift::tracers::bvh::{Bvh, Config};
+use raysift::{tracers, RayBatch};
+use std::sync::Arc;
+
+#[test]
+fn scene_soup_is_36_bytes_per_triangle_plus_its_source() {
+    for s in [procedural::icosphere(20_000), procedural::soup(20_000, 1)] {
+        let n = s.len();
+        assert_eq!(s.triangles().bytes(), 36 * n);
+        let source: usize = s
+            .meshes()
+            .iter()
+            .map(|m| 12 * m.positions.capacity() + 12 * m.indices.capacity())
+            .sum();
+        // Source + soup + per-mesh bookkeeping.
+        assert!(
+            s.bytes() >= 36 * n + source
+                && s.bytes() <= 36 * n + source + 256 * s.meshes().len() + 64,
+            "{}",
+            s.bytes()
+        );
+    }
+    // Welded sphere: about 0.5 vertices per triangle, so about 54 B per triangle in all.
+    let s = procedural::icosphere(20_000);
+    let per_tri = s.bytes() as f64 / s.len() as f64;
+    assert!((53.0..56.0).contains(&per_tri), "{per_tri}");
+}
+
+#[test]
+fn rays_and_hits_are_32_and_16_bytes_per_ray() {
+    let rays =
+        raysift::rays::Camera::framing(&procedural::icosphere(80).bounds(), 45.0, 1.0).rays(64, 32);
+    assert_eq!(rays.bytes(), 32 * 64 * 32);
+    assert_eq!(raysift::HitBatch::new(100).bytes(), 1600);
+    assert_eq!(RayBatch::default().bytes(), 0);
+}
+
+#[test]
+fn naive_holds_nothing() {
+    let mut t = tracers::create("naive", &[]).unwrap();
+    t.prepare(Arc::new(procedural::icosphere(1000))).unwrap();
+    assert_eq!(t.bytes(), 0);
+}
+
+fn bvh_bytes(s: &Scene) -> (usize, usize) {
+    let b = Bvh::build(s, &Config::default()).unwrap();
+    (b.bytes(), b.node_count())
+}
+
+#[test]
+fn bvh_is_nodes_plus_40_bytes_per_triangle() {
+    for s in [
+        procedural::icosphere(50_000),
+        procedural::soup(50_000, 3),
+        procedural::cornell(),
+    ] {
+        let n = s.len();
+        let (bytes, nodes) = bvh_bytes(&s);
+        // 32 B per node (stored in sibling pairs, plus the root's unused slot), 4 B id and 36 B
+        // corner copy per triangle.
+        assert!(
+            bytes >= 32 * nodes + 40 * n,
+            "{}: {bytes} < 32·{nodes} + 40·{n}",
+            s.name
+        );
+        assert!(
+            bytes <= 32 * (nodes + 1) + 40 * n + 64,
+            "{}: {bytes} > 32·({nodes}+1) + 40·{n}",
+            s.name
+        );
+        // A binary tree over n triangles has fewer than 2n nodes: at most 104 B per triangle.
+        assert!(nodes < 2 * n.max(1));
+        let mut t = tracers::create("bvh", &[]).unwrap();
+        let st = t.prepare(Arc::new(s.clone())).unwrap();
+        assert_eq!(t.bytes(), bytes, "the tracer reports its structure's bytes");
+        assert!(st.peak_bytes as usize >= bytes);
+        eprintln!(
+            "bvh on {}: {:.1} B per triangle ({:.2} nodes per triangle)",
+            s.name,
+            bytes as f64 / n as f64,
+            nodes as f64 / n as f64
+        );
+    }
+}
