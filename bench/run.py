@@ -176,8 +176,10 @@ def scene_list(args, mode):
         wanted = list(mode["scenes"])
     else:
         if sdir.is_dir():
-            files = sorted(p.name for p in sdir.iterdir()
-                           if p.name.lower().removesuffix(".gz").endswith(SCENE_EXTS))
+            # smallest first (file size stands in for triangle count), so a cut-short run still
+            # covers most scenes
+            files = [p.name for p in sorted(sdir.iterdir(), key=lambda p: p.stat().st_size)
+                     if p.name.lower().removesuffix(".gz").endswith(SCENE_EXTS)]
         else:
             log(f"NOTE: {sdir} is absent: skipping the shared meshes, running procedural scenes only")
             files = []
@@ -752,8 +754,14 @@ def main(argv=None):
     specs = scene_list(args, mode)
     log(f"mode {mode_name}: {len(specs)} scenes, tracers {tracers}, threads {threads}, rounds {mode['rounds']} "
         f"(+1 warm-up), cpus {all_cpus}, load average {os.getloadavg()[0]:.2f}")
+    out = Path(args.out) if args.out else BENCH / "results" / (
+        now.strftime("%Y-%m-%d") + ("-quick" if mode_name == "quick" else "") + ".json")
     for k, spec in enumerate(specs):
         bench_scene(ctx, spec, results)
+        if mode_name != "check":  # partial results survive an interrupted run
+            out.parent.mkdir(parents=True, exist_ok=True)
+            results["meta"]["partial"] = f"{k + 1} of {len(specs)} scenes"
+            out.write_text(json.dumps(results, indent=1))
         log(f"  [{k + 1}/{len(specs)} scenes, {(time.perf_counter() - started) / 60:.1f} min elapsed, "
             f"load average {os.getloadavg()[0]:.2f}]")
     results["meta"]["elapsed_s"] = time.perf_counter() - started
@@ -768,8 +776,7 @@ def main(argv=None):
 
     ok = not results["disagreements"] and not results["failures"]
     if mode_name != "check":
-        out = Path(args.out) if args.out else BENCH / "results" / (
-            now.strftime("%Y-%m-%d") + ("-quick" if mode_name == "quick" else "") + ".json")
+        results["meta"].pop("partial", None)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(results, indent=1))
         log(f"\nwrote {out}")
