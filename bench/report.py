@@ -91,8 +91,9 @@ def plots(res, plot_dir: Path, stem: str):
     if "camera" in workloads:
         allnames = _order({n for s in scenes for n, c in s["workloads"].get("camera", {}).get("contenders", {}).items()
                            if c.get("summary")})
-        fig, axes = plt.subplots(1, 2, figsize=(13, 5))
-        for metric, ax, lab in (("trace_ms", axes[0], "trace ms"), ("prepare_ms", axes[1], "prepare (build) ms")):
+        fig, axes = plt.subplots(1, 3, figsize=(19, 5.5))
+        for metric, ax, lab in (("trace_ms", axes[0], "trace ms"), ("prepare_ms", axes[1], "prepare (build) ms"),
+                                ("dynamic_ms", axes[2], "dynamic frame ms")):
             for i, n in enumerate(allnames):
                 pts = []
                 for s in scenes:
