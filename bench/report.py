@@ -170,6 +170,10 @@ def write_report(res, results_path: Path, md_path: Path):
              "(> 1: raysift is slower). Peak RSS is the whole process (scene, rays, hits, structure). "
              "Bytes/triangle: raysift's own report of its structure; for Embree, the resident-memory growth "
              "across the build (an estimate).")
+    if any(c.get("slow") for s in res["scenes"] for w in s["workloads"].values() for c in w["contenders"].values()):
+        L.append(f"* Contenders whose warm-up run took more than {m.get('slow_run_s', 6):g} s were measured in "
+                 f"{m.get('slow_rounds', 3)} rounds only (marked in the tables), to keep the full run within its time "
+                 "budget.")
     nd = len(res["disagreements"])
     nchk = sum(len(w["agreement"]) for s in res["scenes"] for w in s["workloads"].values())
     L.append(f"* Agreement with Embree (same miss set, t within {m['tolerances']['t_rel']:g} relative, same "
@@ -238,8 +242,9 @@ def write_report(res, results_path: Path, md_path: Path):
                 bpt = sm.get("bytes_per_triangle")
                 if c["kind"] == "embree" and s["triangles"] < 10000:
                     bpt = None  # an RSS difference says nothing about a tiny structure
+                nm = n + (f" ({len(c['runs'])} rounds)" if c.get("slow") else "")
                 L.append(
-                    f"| {s['name']} | {s['triangles']:,} | {w['rays']:,} | {_f(w.get('hit_fraction'), 3)} | {n} | "
+                    f"| {s['name']} | {s['triangles']:,} | {w['rays']:,} | {_f(w.get('hit_fraction'), 3)} | {nm} | "
                     f"{_f(sm['prepare_ms']['median'], 2)} | {_f(tr['median'], 2)} [{_f(tr['min'], 2)}–{_f(tr['max'], 2)}] | "
                     f"{_f(w['rays'] / tr['median'] / 1e3, 2)} | {_f(sm['dynamic_ms']['median'], 2)} | "
                     f"{'–' if not rt or c['kind'] == 'embree' else _f(rt['median'], 2)} | "

@@ -48,6 +48,9 @@ UV_ABS_TOL = 1e-2  # u, v of the same primitive (catches a struct-layout mismatc
 GRAZE_FRAC = 1e-4  # at most this fraction of rays may differ in the miss set / hit surface
 GRAZE_MIN = 3  # ... or this many, whichever is larger (tiny workloads)
 
+SLOW_RUN_S = 6.0  # a contender whose warm-up run (prepare + trace) takes longer than this ...
+SLOW_ROUNDS = 3  # ... is measured in this many rounds only (flagged in the report), to keep the
+# full run within its time budget on 2 cores
 LONG_RUN_MS = 400  # a run at least this long is measured once per process (warm-up hardly matters)
 FRAME_HIT_TARGET = 0.7  # camera framing: narrow the view until this fraction of a preview hits
 PROCEDURAL = ["sphere:100000", "soup:100000", "sphere:1000000", "soup:1000000"]
@@ -66,9 +69,9 @@ LIGHT_OVERRIDES = {
 
 MODES = {
     # naive_budget: rays x triangles above which the brute-force tracer is skipped (it tests every
-    # triangle: ~1e8 tests/s per core here, so 5e8 is a few seconds per run)
-    "full": dict(width=1024, height=1024, random=1 << 19, rounds=5, threads=[1, 2], naive_budget=5e8, scenes=None),
-    "quick": dict(width=1024, height=1024, random=1 << 19, rounds=2, threads=[1, 2], naive_budget=5e8,
+    # triangle: ~5e7-1e8 tests/s per core here, so 1e8 is about a second per run)
+    "full": dict(width=1024, height=1024, random=1 << 19, rounds=5, threads=[1, 2], naive_budget=1e8, scenes=None),
+    "quick": dict(width=1024, height=1024, random=1 << 19, rounds=2, threads=[1, 2], naive_budget=1e8,
                   scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
     "check": dict(width=128, height=128, random=1 << 14, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
@@ -602,6 +605,8 @@ def bench_scene(ctx, spec, results):
         for rnd in range(ctx["rounds"] + 1):
             warm = rnd == 0
             for c in list(alive):
+                if not warm and rnd > c.get("max_rounds", ctx["rounds"]):
+                    continue
                 out = wdir / f"{wname}__{c['name']}.npy" if warm else None
                 try:
                     # the warm-up round only checks the hits: one run per process is enough
@@ -621,6 +626,11 @@ def bench_scene(ctx, spec, results):
                     long_run = r["prepare_ms"] + r["trace_ms"] > LONG_RUN_MS
                     c["inproc"] = 1 if long_run or c.get("tracer") == "naive" else ctx["inproc"]
                     cres["inproc"] = c["inproc"]
+                    if (r["prepare_ms"] + r["trace_ms"]) / 1e3 > ctx["slow_s"] and ctx["rounds"] > SLOW_ROUNDS:
+                        c["max_rounds"] = SLOW_ROUNDS
+                        cres["slow"] = True
+                        log(f"  {c['name']} on {wname}: {(r['prepare_ms'] + r['trace_ms']) / 1e3:.1f} s per run > "
+                            f"{ctx['slow_s']:g} s: measured in {SLOW_ROUNDS} rounds only")
                     cres["warmup"] = {k: v for k, v in r.items() if k != "raw"}
                     cres["json"] = r["raw"]
                     if ref_out is None:
@@ -698,6 +708,8 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, help="measured rounds after the warm-up (default 5; quick 3)")
     ap.add_argument("--inproc", type=int, help="prepare+trace runs inside each process, the last one "
                     "measured (default 2; --check 1)")
+    ap.add_argument("--slow", type=float, default=SLOW_RUN_S, help="seconds per run above which a contender is "
+                    f"measured in {SLOW_ROUNDS} rounds only (default %(default)s; 0 = never)")
     ap.add_argument("--timeout", type=float, default=600, help="seconds before one contender run is killed")
     ap.add_argument("--raysift", help="raysift binary (default target/release/raysift)")
     ap.add_argument("--peer", help="embree-peer binary (default bench/target/release/embree-peer)")
@@ -735,6 +747,7 @@ def main(argv=None):
             sys.exit(f"unknown tracer(s) {unknown}; `raysift tracers` lists {available}")
     ctx = dict(mode=mode, raysift=raysift, peer=peer, cpus=all_cpus, threads=threads, tracers=tracers,
                rounds=mode["rounds"], timeout=args.timeout,
+               slow_s=args.slow if args.slow > 0 else float("inf"),
                inproc=args.inproc or (1 if mode_name == "check" else 2), keep_work=args.keep_work,
                workloads=[w for w in args.workloads.split(",") if w in WORKLOADS],
                work=Path(args.work) if args.work else BENCH / "work" / mode_name)
@@ -744,7 +757,7 @@ def main(argv=None):
         meta=dict(date=now.strftime("%Y-%m-%d %H:%M UTC"), mode=mode_name,
                   command="python3 bench/run.py " + shlex.join(sys.argv[1:] if argv is None else argv),
                   cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
-                  rounds=mode["rounds"], warmup_rounds=1, inproc_runs=ctx["inproc"], camera=[mode["width"], mode["height"]],
+                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
                   raysift_tracers=tracers, raysift_binary=str(raysift),
                   raysift_version=run_proc([raysift, "--version"])[0].strip(), kernel=platform.release(), versions=versions(),
