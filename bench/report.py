@@ -125,6 +125,10 @@ def write_report(res, results_path: Path, md_path: Path):
     root = bench.parent
     stem = results_path.stem
     m = res["meta"]
+    if not m.get("embree_version"):  # partial results: take it from a peer's own JSON
+        m["embree_version"] = next((c["json"].get("embree_version") for s in res["scenes"]
+                                    for w in s["workloads"].values() for c in w["contenders"].values()
+                                    if c["kind"] == "embree" and c.get("json")), None)
     try:
         pl = plots(res, results_path.resolve().parent / "plots", stem)
     except Exception as e:  # noqa: BLE001  (the tables matter more than the pictures)
@@ -146,12 +150,13 @@ def write_report(res, results_path: Path, md_path: Path):
     L.append("")
     L.append(f"* Machine: **{m['cpu_model']}**, {m['logical_cpus']} logical CPUs (used: {m['cpus_used']}), "
              f"Linux {m.get('kernel', '?')}; load average at start {m['load'][0]:.2f}, at end "
-             f"{m.get('load_end', [float('nan')])[0]:.2f} (the machine is shared: absolute times drift, "
+             f"{m.get('load_end', [float('nan')])[0]:.2f} (4 other engineers were building and benchmarking on it; the machine is shared: absolute times drift, "
              "ratios from the same run hold).")
     binary = "" if m.get("raysift_binary", "").endswith("target/release/raysift") and "/tmp/" not in m.get(
         "raysift_binary", "") else f" (raysift binary {m.get('raysift_binary')})"
     L.append(f"* Command: `{m['command']}` at commit `{m['raysift_commit']}`{binary}, "
-             f"{m.get('elapsed_s', 0) / 60:.1f} minutes.")
+             + (f"{m['elapsed_s'] / 60:.1f} minutes." if m.get("elapsed_s") else
+              f"stopped after {sum(x.get('elapsed_s', 0) for x in res['scenes']) / 60:.1f} minutes."))
     v = m.get("versions", {})
     L.append(f"* Contenders: raysift tracers {', '.join(m['raysift_tracers'])} (`raysift trace --json --pin`), "
              f"Embree {_ver(m.get('embree_version'))} from the embreex {v.get('embreex', '?')} wheel through "
