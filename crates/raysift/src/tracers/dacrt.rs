@@ -43,14 +43,15 @@
 //!
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
 //! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
-//! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 4·R` (ray indices) and, in packet
+//! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
+//!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`) and, in packet
 //!   mode, `44` bytes per cone (40 for the cone, 4 for its index), i.e. `44·⌈W/8⌉·(tile rows)`
 //!   for camera rays (`= 0.6875·R` when W and H are multiples of 8 and the bands are whole tile
 //!   rows) and, for shadow rays, `44·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
 //!   rays that groups them into compact packets).
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
-//! `b = 4` (ray and random modes), `4.6875` (camera packets, full tiles), `12.6875` (shadow
+//! `b = 36` (ray and random modes), `36.6875` (camera packets, full tiles), `44.6875` (shadow
 //! packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
 //! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
 //! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
@@ -249,6 +250,20 @@ struct PackedCone {
     done: u64,
 }
 
+/// A ray as the filter loops see it (32 bytes, swapped together with its id in `ray_idx`): the
+/// slab test reads one record instead of eight scattered SoA entries through an index.
+/// `cut` is the end of the ray's useful interval: the widened z-buffer `t` for closest hits
+/// (updated by the leaves), `tmax` for any-hit. The direction itself (needed only by the
+/// leaves' exact triangle test) stays in the caller's batch.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+struct RayRec {
+    o: [f32; 3],
+    tmin: f32,
+    inv: [f32; 3],
+    cut: f32,
+}
+
 /// How the rays of a task map to packets.
 #[derive(Clone, Copy, Debug)]
 enum Packets {
@@ -357,7 +372,9 @@ struct Task<'a, const ANY: bool> {
     // Any-hit output (empty for closest).
     occ: &'a mut [bool],
     tri_idx: Vec<u32>,
+    /// Local ray ids; `recs[p]` is the record of ray `ray_idx[p]` (both permuted together).
     ray_idx: Vec<u32>,
+    recs: Vec<RayRec>,
     /// Terminated-ray pivot (§3.2): `ray_idx[..rterm]` are final.
     rterm: usize,
     terminate: bool,
@@ -385,27 +402,42 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
     }
 
+    /// Writes ray `k` (local) with its record into slot `slot` of the ray list.
+    #[inline(always)]
+    fn load_ray(&mut self, slot: usize, k: usize) {
+        let i = self.base + k;
+        let inv = Vec3::ONE / self.rays.dir(i);
+        self.ray_idx[slot] = k as u32;
+        self.recs[slot] = RayRec {
+            o: self.rays.origin(i).to_array(),
+            tmin: self.rays.tmin[i],
+            inv: inv.to_array(),
+            cut: self.best_cut(k),
+        };
+    }
+
     /// In-place filter of `ray_idx[rterm..rend]` against `b` (full slab test, §3.2: no stacked
     /// intervals). Returns the new end.
+    ///
+    /// Branch-free Lomuto partition: with `[rterm, k)` kept and `[k, p)` rejected, swapping
+    /// slots `k` and `p` unconditionally keeps both invariants whatever the test says (a rejected
+    /// ray at `p` trades places with a rejected one at `k`, or with itself), so only `k` depends
+    /// on the test.
     fn partition_rays(&mut self, b: &Aabb, rend: usize) -> usize {
-        let mut k = self.rterm;
-        for p in self.rterm..rend {
-            let r = self.ray_idx[p] as usize;
-            let i = self.base + r;
-            let d = self.rays.dir(i);
-            if b.ray_interval(
-                self.rays.origin(i),
-                Vec3::ONE / d,
-                self.rays.tmin[i],
-                self.best_cut(r),
-            )
-            .is_some()
-            {
-                self.ray_idx.swap(k, p);
-                k += 1;
-            }
+        let start = self.rterm;
+        let recs = &mut self.recs[..rend];
+        let ids = &mut self.ray_idx[..rend];
+        let mut k = start;
+        for p in start..rend {
+            let r = recs[p];
+            let keep = b
+                .ray_interval(Vec3::from(r.o), Vec3::from(r.inv), r.tmin, r.cut)
+                .is_some();
+            recs.swap(k, p);
+            ids.swap(k, p);
+            k += keep as usize;
         }
-        self.st.ray_box += (rend - self.rterm) as u64;
+        self.st.ray_box += (rend - start) as u64;
         k
     }
 
@@ -486,7 +518,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let step = (n / 64).max(1);
                 let (mut pos, mut neg) = (0, 0);
                 for p in (self.rterm..rend).step_by(step) {
-                    let dx = self.rays.dir(self.base + self.ray_idx[p] as usize)[axis];
+                    // 1/d has d's sign (±0 gives ±inf); only the order depends on it.
+                    let dx = self.recs[p].inv[axis];
                     pos += (dx > 0.0) as u32;
                     neg += (dx < 0.0) as u32;
                 }
@@ -536,7 +569,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         while p < rend {
             let r = self.ray_idx[p] as usize;
             let i = self.base + r;
-            let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+            let rec = self.recs[p];
+            let (o, d, tmin) = (Vec3::from(rec.o), self.rays.dir(i), rec.tmin);
             let done = if ANY {
                 let tmax = self.rays.tmax[i];
                 let mut hit = false;
@@ -571,10 +605,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 }
                 self.st.ray_tri += nt as u64;
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
+                self.recs[p].cut = widen(bt);
                 self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
             };
             if done {
                 self.ray_idx.swap(p, self.rterm);
+                self.recs.swap(p, self.rterm);
                 self.rterm += 1;
             }
             p += 1;
@@ -675,20 +711,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 if done & (1u64 << bit) != 0 {
                     return;
                 }
+                self.load_ray(rend, k);
                 if filter {
-                    let i = self.base + k;
                     self.st.ray_box += 1;
-                    let cut = if ANY {
-                        self.rays.tmax[i]
-                    } else {
-                        widen(self.t[k])
-                    };
-                    let (o, inv) = (self.rays.origin(i), Vec3::ONE / self.rays.dir(i));
-                    if cell.ray_interval(o, inv, self.rays.tmin[i], cut).is_none() {
+                    let r = self.recs[rend];
+                    let (o, inv) = (Vec3::from(r.o), Vec3::from(r.inv));
+                    if cell.ray_interval(o, inv, r.tmin, r.cut).is_none() {
                         return;
                     }
                 }
-                self.ray_idx[rend] = k as u32;
                 rend += 1;
             });
             self.perm = perm;
@@ -913,6 +944,7 @@ impl Dacrt {
             occ,
             tri_idx: (0..ntri as u32).collect(),
             ray_idx: vec![0u32; len],
+            recs: vec![RayRec::default(); len],
             rterm: 0,
             terminate: plan.terminate,
             view: plan.view,
@@ -928,7 +960,8 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes = (4 * ntri + 4 * len + 44 * ncones + 8 * task.perm.len()) as u64;
+        task.st.peak_bytes =
+            (4 * ntri + 36 * len + 44 * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
@@ -948,15 +981,19 @@ impl Dacrt {
                     task.cones[c] = cone;
                     task.cone_idx.push(c as u32);
                 }
-                None => packets.for_each(c, &task.perm, |k, _| {
-                    task.ray_idx[rend] = k as u32;
-                    rend += 1;
-                }),
+                None => {
+                    let perm = std::mem::take(&mut task.perm);
+                    packets.for_each(c, &perm, |k, _| {
+                        task.load_ray(rend, k);
+                        rend += 1;
+                    });
+                    task.perm = perm;
+                }
             }
         }
         if ncones == 0 {
             for k in 0..len {
-                task.ray_idx[k] = k as u32;
+                task.load_ray(k, k);
             }
             rend = len;
         }
