@@ -57,7 +57,9 @@
 //! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
 
 use crate::error::Result;
-use crate::geom::{cone_box_overlap, intersect_triangle, tri_box_edge_axes, Aabb, Cone};
+use crate::geom::{
+    cone_box_overlap, intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, Tri4,
+};
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
 use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
@@ -179,6 +181,9 @@ impl Dacrt {
 fn widen(t: f32) -> f32 {
     t + t.abs() * (4.0 * f32::EPSILON)
 }
+
+/// Leaves with at most this many triangles run the four-wide triangle test on a gathered copy.
+const LEAF4_MAX: usize = 64;
 
 /// Relative gap a hit must keep from its leaf's exit to terminate the ray: generous, because a
 /// ray that is not terminated only costs time, and a ray terminated too early is wrong.
@@ -456,6 +461,25 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let sat = nt < self.cfg.sat_threshold;
         let mut k = 0;
         let mut other = 0;
+        if !sat {
+            // Large streams: the plane test only, as a branch-free Lomuto partition (see
+            // `partition_rays`: the unconditional swap keeps `[0, k)` kept, `[k, p)` dropped).
+            let idx = &mut self.tri_idx[..nt];
+            for p in 0..nt {
+                let t = idx[p] as usize;
+                let (l, h) = (lo[t], hi[t]);
+                let (inside, opposite) = if low {
+                    (l <= split, h >= split)
+                } else {
+                    (h >= split, l <= split)
+                };
+                other += opposite as usize;
+                idx.swap(k, p);
+                k += inside as usize;
+            }
+            self.st.tri_box += nt as u64;
+            return (k, other);
+        }
         let mut sat_tests = 0u64;
         for p in 0..nt {
             let t = self.tri_idx[p] as usize;
@@ -563,6 +587,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 
     /// The naive leaf (§3.2): every active ray against every triangle, then early termination.
     fn leaf(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
+        if nt <= LEAF4_MAX {
+            return self.leaf4(cell, nt, rend, ord);
+        }
         self.st.leaves += 1;
         let tris = self.tris;
         let mut p = self.rterm;
@@ -615,6 +642,74 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             }
             p += 1;
         }
+    }
+
+    /// [`Self::leaf`] for up to [`LEAF4_MAX`] triangles: they are gathered once into groups of
+    /// four ([`Tri4`], padding lanes are point triangles, never hit) and each ray runs the
+    /// four-wide shared test. Same answers as the scalar loop: a group is tested against the
+    /// best `t` at its start, then its lanes go through [`closer`] in triangle order, and a lane
+    /// beyond the running best fails `closer` just as it would have failed the scalar `tmax`.
+    fn leaf4(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
+        self.st.leaves += 1;
+        let tris = self.tris;
+        let mut buf = [Tri4::default(); LEAF4_MAX / 4];
+        let mut ids = [0u32; LEAF4_MAX];
+        for q in 0..nt {
+            let t = self.tri_idx[q];
+            let tu = t as usize;
+            ids[q] = t;
+            buf[q / 4].set(q % 4, tris.v0[tu], tris.v1[tu], tris.v2[tu]);
+        }
+        let groups = &buf[..nt.div_ceil(4)];
+        let mut tests = 0u64;
+        let mut p = self.rterm;
+        while p < rend {
+            let r = self.ray_idx[p] as usize;
+            let i = self.base + r;
+            let rec = self.recs[p];
+            let (o, d, tmin) = (Vec3::from(rec.o), self.rays.dir(i), rec.tmin);
+            let done = if ANY {
+                let tmax = self.rays.tmax[i];
+                let mut hit = false;
+                for g in groups {
+                    tests += 4;
+                    if intersect_triangle4(o, d, g, tmin, tmax).mask != 0 {
+                        hit = true;
+                        break;
+                    }
+                }
+                if hit {
+                    self.occ[r] = true;
+                }
+                hit
+            } else {
+                let (mut bt, mut bp, mut bu, mut bv) =
+                    (self.t[r], self.prim[r], self.u[r], self.v[r]);
+                for (gi, g) in groups.iter().enumerate() {
+                    let h = intersect_triangle4(o, d, g, tmin, bt);
+                    let mut m = h.mask;
+                    while m != 0 {
+                        let l = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let t = ids[gi * 4 + l];
+                        if closer(h.t[l], t, bt, bp) {
+                            (bt, bp, bu, bv) = (h.t[l], t, h.u[l], h.v[l]);
+                        }
+                    }
+                }
+                tests += nt as u64;
+                (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
+                self.recs[p].cut = widen(bt);
+                self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
+            };
+            if done {
+                self.ray_idx.swap(p, self.rterm);
+                self.recs.swap(p, self.rterm);
+                self.rterm += 1;
+            }
+            p += 1;
+        }
+        self.st.ray_tri += tests;
     }
 
     /// True when the hit at `bt` is final: the hit point lies inside this leaf cell, away from
