@@ -34,12 +34,20 @@
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
 //!   any-hit: every hit terminates its ray, in every mode.
+//! - **Layout of the hot loops**: the ray list holds 32-byte records (`RayRec`: origin, `tmin`,
+//!   `1/d`, cut-off) swapped together with the ray ids, as potato3d's `dacrt_simd` does, so the
+//!   ray filter streams one record per ray instead of gathering eight SoA arrays through an
+//!   index (2–2.6× faster random-ray mode on 1M-triangle scenes); the ray and split-plane
+//!   partitions are branch-free Lomuto loops; leaves of at most 64 triangles gather them once
+//!   into groups of four and run the shared four-wide test ([`crate::geom::intersect_triangle4`],
+//!   bit-equal to the scalar one); larger leaves (few rays, many triangles) keep the scalar loop
+//!   (gathering in chunks for them measured ~15% slower on random rays).
 //! - **Threads**: as in the paper's path tracer, rayon tasks own disjoint shares of the rays
 //!   (bands of tile rows for camera rays) and their own index lists.
 //!
 //! Correctness is bit-exact with `naive`: every candidate pair goes through the shared
-//! [`intersect_triangle`] and [`closer`], and every filter is conservative (the z-buffer cut and
-//! box exits are widened by the shared rounding slack).
+//! [`intersect_triangle`] (or its bit-equal four-wide form) and [`closer`], and every filter
+//! is conservative (the z-buffer cut and box exits are widened by the shared rounding slack).
 //!
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
 //! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
