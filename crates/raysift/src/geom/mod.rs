@@ -10,6 +10,7 @@ pub mod conebox;
 pub mod shapes;
 pub mod slab;
 pub mod triangle;
+pub mod triangle4;
 pub mod tribox;
 
 pub use aabb::Aabb;
@@ -18,6 +19,7 @@ pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};
 pub use slab::SlabRay;
 pub use triangle::{intersect_triangle, TriHit};
+pub use triangle4::{intersect_triangle4, Hit4, Tri4};
 pub use tribox::{tri_box_edge_axes, tri_box_overlap};
 
 /// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the
