@@ -138,19 +138,24 @@ impl Sub {
                 out.push(NodePair::UNUSED);
                 let l = left.flatten(out);
                 let r = right.flatten(out);
-                out[p] = NodePair([l, r]);
+                out[p] = NodePair::new([l, r]);
                 Node::interior(bounds, axis, p as u32)
             }
             Sub::Flat { root, pairs } => {
                 let base = out.len() as u32;
-                let rebase = |mut n: Node| {
-                    if !n.is_leaf() {
-                        n.offset += base;
+                out.extend(pairs.into_iter().map(|mut p| {
+                    for i in 0..2 {
+                        if p.count[i] == 0 {
+                            p.offset[i] += base;
+                        }
                     }
-                    n
-                };
-                out.extend(pairs.into_iter().map(|p| NodePair(p.0.map(rebase))));
-                rebase(root)
+                    p
+                }));
+                let mut root = root;
+                if !root.is_leaf() {
+                    root.offset += base;
+                }
+                root
             }
         }
     }
@@ -186,7 +191,8 @@ pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
     let root = ctx.build_par(&mut refs, 0, 0, bounds, cbounds);
     let mut pairs = Vec::with_capacity(1 + root.pair_count());
     pairs.push(NodePair::UNUSED);
-    pairs[0].0[0] = root.flatten(&mut pairs);
+    let root = root.flatten(&mut pairs);
+    pairs[0].set(0, root);
     let ids = refs.iter().map(|r| r.id()).collect();
     Built { pairs, ids }
 }
@@ -346,7 +352,7 @@ impl Ctx<'_> {
                 let (l, r) = refs.split_at_mut(mid);
                 let left = self.build_seq(l, first, depth + 1, lb, lc, out, scratch);
                 let right = self.build_seq(r, first + mid, depth + 1, rb, rc, out, scratch);
-                out[p] = NodePair([left, right]);
+                out[p] = NodePair::new([left, right]);
                 Node::interior(bounds.aabb(), axis as u8, p as u32)
             }
         }

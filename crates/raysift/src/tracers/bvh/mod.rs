@@ -40,7 +40,7 @@ mod traverse;
 pub use build::{MAX_BINS, MAX_DEPTH};
 
 use crate::error::{Error, Result};
-use crate::geom::Aabb;
+use crate::geom::{Aabb, BoxPair};
 use crate::rays::{HitBatch, RayBatch};
 use crate::scene::Scene;
 use crate::tracer::{par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
@@ -163,29 +163,70 @@ impl Node {
     }
 }
 
-/// Two sibling nodes in one 64-byte cache line: traversal tests both children of a node at
-/// once, so keeping siblings together means one cache line per visited interior node instead of
-/// two (in an A/B against pbrt's left-child-next layout on sphere:1M the time was the same
-/// within noise: the hardware's adjacent-line prefetch already covers most of it; see the
-/// module doc).
+/// Two sibling nodes in one 64-byte cache line, boxes as structure of arrays ([`BoxPair`]):
+/// traversal tests both children of a node at once with one SIMD slab test
+/// ([`SlabRay::entry2`](crate::geom::SlabRay::entry2)), so keeping siblings together means one
+/// cache line and one 4-wide test per visited interior node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
-pub struct NodePair(pub [Node; 2]);
+pub struct NodePair {
+    /// Both children's boxes.
+    pub boxes: BoxPair,
+    /// Per child: leaf: first triangle position; interior: index of its children's pair.
+    pub offset: [u32; 2],
+    /// Per child: triangles in a leaf, 0 for interior nodes.
+    pub count: [u16; 2],
+    /// Per child: split axis of an interior node (informational).
+    pub axis: [u8; 2],
+    _pad: [u8; 2],
+}
 
 const _: () = assert!(std::mem::size_of::<NodePair>() == 64);
 
 impl NodePair {
-    /// Placeholder (also the unused second slot of pair 0): an empty-box leaf.
-    pub const UNUSED: NodePair = NodePair(
-        [Node {
-            min: Vec3::INFINITY,
-            max: Vec3::NEG_INFINITY,
-            offset: 0,
-            count: 0,
-            axis: 0,
+    /// Placeholder (also the unused second slot of pair 0): empty-box leaves.
+    pub const UNUSED: NodePair = NodePair {
+        boxes: BoxPair::EMPTY,
+        offset: [0; 2],
+        count: [0; 2],
+        axis: [0; 2],
+        _pad: [0; 2],
+    };
+
+    /// The pair of `nodes` (left in slot 0).
+    pub fn new(nodes: [Node; 2]) -> Self {
+        let mut p = Self::UNUSED;
+        p.set(0, nodes[0]);
+        p.set(1, nodes[1]);
+        p
+    }
+
+    /// Node in slot `i` (0 or 1).
+    #[inline(always)]
+    pub fn node(&self, i: usize) -> Node {
+        let (min, max) = self.boxes.get(i);
+        Node {
+            min,
+            max,
+            offset: self.offset[i],
+            count: self.count[i],
+            axis: self.axis[i],
             _pad: 0,
-        }; 2],
-    );
+        }
+    }
+
+    /// Both nodes.
+    pub fn nodes(&self) -> [Node; 2] {
+        [self.node(0), self.node(1)]
+    }
+
+    /// Stores `n` in slot `i` (0 or 1).
+    pub fn set(&mut self, i: usize, n: Node) {
+        self.boxes.set(i, n.min, n.max);
+        self.offset[i] = n.offset;
+        self.count[i] = n.count;
+        self.axis[i] = n.axis;
+    }
 }
 
 /// The built hierarchy: node pairs, ids and triangle copies in leaf order.
@@ -230,21 +271,21 @@ impl Bvh {
     }
 
     /// The root, if any.
-    pub fn root(&self) -> Option<&Node> {
-        self.pairs.first().map(|p| &p.0[0])
+    pub fn root(&self) -> Option<Node> {
+        self.pairs.first().map(|p| p.node(0))
     }
 
     /// The two children of interior node `n`.
     #[inline(always)]
-    pub fn children(&self, n: &Node) -> &[Node; 2] {
-        &self.pairs[n.offset as usize].0
+    pub fn children(&self, n: &Node) -> [Node; 2] {
+        self.pairs[n.offset as usize].nodes()
     }
 
     /// All nodes in use (the root and every pair after the first).
-    pub fn nodes(&self) -> impl Iterator<Item = &Node> {
+    pub fn nodes(&self) -> impl Iterator<Item = Node> + '_ {
         self.root()
             .into_iter()
-            .chain(self.pairs.iter().skip(1).flat_map(|p| p.0.iter()))
+            .chain(self.pairs.iter().skip(1).flat_map(|p| p.nodes()))
     }
 
     /// Number of nodes in use.
@@ -291,10 +332,10 @@ impl Bvh {
                 0
             } else {
                 let [l, r] = bvh.children(n);
-                1 + rec(bvh, l).max(rec(bvh, r))
+                1 + rec(bvh, &l).max(rec(bvh, &r))
             }
         }
-        self.root().map_or(0, |r| rec(self, r))
+        self.root().map_or(0, |r| rec(self, &r))
     }
 
     /// Checks the invariants against the scene it was built from: pair offsets in range and in
@@ -332,7 +373,7 @@ impl Bvh {
         }
         let mut next_pair = 1usize;
         let mut next_pos = 0usize;
-        let mut stack = vec![(*root, 0usize)];
+        let mut stack = vec![(root, 0usize)];
         while let Some((node, depth)) = stack.pop() {
             if depth >= MAX_DEPTH {
                 return bad(format!("node at depth {depth} >= {MAX_DEPTH}"));
@@ -356,7 +397,7 @@ impl Bvh {
                     return bad(format!("children at pair {p}, expected {next_pair}"));
                 }
                 next_pair += 1;
-                let [l, r] = self.pairs[p].0;
+                let [l, r] = self.pairs[p].nodes();
                 for c in [l, r] {
                     if !b.contains_box(&c.bounds()) {
                         return bad(format!("pair {p}: a child's box is outside its parent's"));

@@ -473,11 +473,11 @@ fn validate_catches_corruption() {
     let good = Bvh::build(&scene, &small_cfg()).unwrap();
     good.validate(&scene).unwrap();
     let leaf_pair = (1..good.pairs.len())
-        .find(|&p| good.pairs[p].0[0].is_leaf())
+        .find(|&p| good.pairs[p].count[0] != 0)
         .unwrap();
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].0[0].max.x -= 1e-3; // leaf box no longer contains its triangles
+    b.pairs[leaf_pair].boxes.x[2] -= 1e-3; // leaf box no longer contains its triangles
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
@@ -490,14 +490,14 @@ fn validate_catches_corruption() {
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].0[0].count += 1; // leaf ranges overlap
+    b.pairs[leaf_pair].count[0] += 1; // leaf ranges overlap
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].0[0].offset = good.pairs.len() as u32; // child pair out of range
+    b.pairs[0].offset[0] = good.pairs.len() as u32; // child pair out of range
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].0[0].min.y += 0.5; // root does not contain its children
+    b.pairs[0].boxes.y[0] += 0.5; // root does not contain its children
     assert!(b.validate(&scene).is_err());
 }
