@@ -162,6 +162,23 @@ impl SlabRay {
         }
     }
 
+    /// [`SlabRay::entry2`] for any octant without branching on it: the near/far planes are
+    /// chosen by bit masks built from [`SlabRay::neg`] (for loops that interleave rays of
+    /// different octants). Same results bit for bit.
+    #[inline(always)]
+    pub fn entry2_masked(&self, b: &BoxPair, tmin: f32, tmax: f32) -> (u32, [f32; 2]) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        {
+            // SAFETY: as in `entry2_sse`: SSE/SSE2 only (compiled for them), no raw pointers;
+            // checked against the scalar reference by `entry2_is_entry_bit_for_bit`.
+            unsafe { self.entry2_sse_inner::<false, false, false, true>(b, tmin, tmax) }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        {
+            self.entry2_scalar(b, tmin, tmax)
+        }
+    }
+
     /// The reference for [`SlabRay::entry2`]: [`SlabRay::entry`] on each box.
     #[inline(always)]
     pub fn entry2_scalar(&self, b: &BoxPair, tmin: f32, tmax: f32) -> (u32, [f32; 2]) {
@@ -188,12 +205,13 @@ impl SlabRay {
         // of the x86_64 baseline). No raw pointers: the loads go through glam's Vec4 (an __m128
         // on this target). Exercised against the scalar reference by
         // `entry2_is_entry_bit_for_bit`.
-        unsafe { self.entry2_sse_inner::<NX, NY, NZ>(b, tmin, tmax) }
+        unsafe { self.entry2_sse_inner::<NX, NY, NZ, false>(b, tmin, tmax) }
     }
 
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     #[inline(always)]
-    unsafe fn entry2_sse_inner<const NX: bool, const NY: bool, const NZ: bool>(
+    /// With `MASKED`, the octant comes from `self.neg` at run time (the const signs unused).
+    unsafe fn entry2_sse_inner<const NX: bool, const NY: bool, const NZ: bool, const MASKED: bool>(
         &self,
         b: &BoxPair,
         tmin: f32,
@@ -206,20 +224,30 @@ impl SlabRay {
         // Lanes of `t`: [t(min_a), t(min_b), t(max_a), t(max_b)]; after the octant swap lanes
         // 0, 1 are the near planes' distances and lanes 2, 3 the far planes'.
         #[inline(always)]
-        unsafe fn axis<const NEG: bool>(v: [f32; 4], o: f32, inv: f32) -> __m128 {
+        unsafe fn axis<const NEG: bool, const MASKED: bool>(
+            v: [f32; 4],
+            o: f32,
+            inv: f32,
+            neg: bool,
+        ) -> __m128 {
             let t = _mm_mul_ps(
                 _mm_sub_ps(Vec4::from_array(v).into(), _mm_set1_ps(o)),
                 _mm_set1_ps(inv),
             );
-            if NEG {
+            if MASKED {
+                let m = _mm_set1_ps(f32::from_bits(0u32.wrapping_sub(neg as u32)));
+                let swapped = _mm_shuffle_ps::<0b01_00_11_10>(t, t);
+                _mm_or_ps(_mm_and_ps(m, swapped), _mm_andnot_ps(m, t))
+            } else if NEG {
                 _mm_shuffle_ps::<0b01_00_11_10>(t, t)
             } else {
                 t
             }
         }
-        let tx = axis::<NX>(b.x, o.x, inv.x);
-        let ty = axis::<NY>(b.y, o.y, inv.y);
-        let tz = axis::<NZ>(b.z, o.z, inv.z);
+        let neg = self.neg;
+        let tx = axis::<NX, MASKED>(b.x, o.x, inv.x, neg[0]);
+        let ty = axis::<NY, MASKED>(b.y, o.y, inv.y, neg[1]);
+        let tz = axis::<NZ, MASKED>(b.z, o.z, inv.z, neg[2]);
         // Same order and operand roles as `entry`: `maxps(t, e)` = `if t > e { t } else { e }`.
         let mut enter = _mm_set1_ps(tmin);
         enter = _mm_max_ps(tx, enter);
@@ -338,6 +366,13 @@ mod tests {
             let (m, e) = sr.entry2_dyn(&bp, tmin, tmax);
             let (ms, es) = sr.entry2_scalar(&bp, tmin, tmax);
             assert_eq!(m, ms, "{bp:?} {o} {d} {tmin} {tmax}");
+            let (mm, em) = sr.entry2_masked(&bp, tmin, tmax);
+            assert_eq!(mm, ms, "masked: {bp:?} {o} {d} {tmin} {tmax}");
+            for i in 0..2 {
+                if mm >> i & 1 == 1 {
+                    assert_eq!(em[i].to_bits(), es[i].to_bits(), "masked: {bp:?} {o} {d}");
+                }
+            }
             for i in 0..2 {
                 if m >> i & 1 == 1 {
                     assert_eq!(e[i].to_bits(), es[i].to_bits(), "{bp:?} {o} {d}");

@@ -63,11 +63,12 @@ fn assert_same(scene: &Arc<Scene>, cfg: Config, rays: &RayBatch) -> usize {
 }
 
 /// Small leaves and a low parallel threshold so the tests exercise deep trees and the parallel
-/// build path even on small scenes.
+/// build path even on small scenes; one ray at a time (the octant-specialised walk).
 fn small_cfg() -> Config {
     Config {
         max_leaf: 2,
         parallel_threshold: 64,
+        lanes: 1,
         ..Config::default()
     }
 }
@@ -80,6 +81,7 @@ fn cfgs() -> [Config; 3] {
             bins: 2,
             max_leaf: 1,
             parallel_threshold: 8,
+            lanes: 3,
             ..Config::default()
         },
     ]

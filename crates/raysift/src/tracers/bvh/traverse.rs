@@ -278,3 +278,240 @@ fn occluded_ray<const NX: bool, const NY: bool, const NZ: bool>(
         n = stack[sp];
     }
 }
+
+/// Most rays [`interleaved_chunk`] keeps in flight.
+pub const MAX_LANES: usize = 16;
+
+/// Hints the CPU to fetch the cache line holding `p` (a no-op off x86_64).
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+    // SAFETY: a prefetch is only a hint: it never faults or changes memory, whatever the
+    // address (callers pass in-bounds addresses anyway); SSE is enabled for this target.
+    // Exercised by every traversal test (conformance, proptest).
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>(p as *const i8)
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
+    let _ = p;
+}
+
+/// One ray in flight in [`interleaved_chunk`].
+struct Lane {
+    q: Query,
+    best_t: f32,
+    best_p: u32,
+    bu: f32,
+    bv: f32,
+    n: Entry,
+    sp: usize,
+    /// Position of the ray in the chunk.
+    k: usize,
+}
+
+/// The data a node refers to: its children's pair (interior) or its triangles (leaf).
+#[inline(always)]
+fn prefetch_entry(bvh: &Bvh, n: Entry) {
+    if n.count != 0 {
+        let t = bvh.tris.as_ptr().wrapping_add(n.offset as usize);
+        prefetch(t);
+        // A leaf's corners span up to 3 cache lines (36 B each, up to 255 of them: the first
+        // few matter).
+        prefetch(t.wrapping_add(n.count as usize - 1));
+    } else {
+        prefetch(bvh.pairs.as_ptr().wrapping_add(n.offset as usize));
+    }
+}
+
+/// Closest hit (`ANY = false`) or any hit of rays `range`, `lanes` rays at a time: each round
+/// advances every ray in flight by one node (the same walk as [`closest_chunk`] /
+/// [`occluded_chunk`], near/far planes picked by masks instead of per octant), prefetching the
+/// node each will visit next, so the cache misses of different rays overlap instead of
+/// serialising (the traversal of a big scene is bound by memory latency, not arithmetic).
+/// A finished ray's lane takes the next ray of the chunk. Each ray's work and result are
+/// exactly those of the one-at-a-time walk. `done(k, lane)` receives each ray that reached
+/// the root's box when it finishes.
+fn interleaved_chunk<const ANY: bool>(
+    bvh: &Bvh,
+    rays: &RayBatch,
+    range: Range<usize>,
+    lanes: usize,
+    c: &mut Counters,
+    mut done: impl FnMut(&Lane, bool),
+) {
+    let Some(root) = bvh.root() else {
+        return;
+    };
+    let lanes = lanes.clamp(1, MAX_LANES);
+    let pairs: &[NodePair] = &bvh.pairs;
+    let base = range.start;
+    let mut next = range.start;
+    let end = range.end;
+    // Starts the next ray that enters the root box, if any is left.
+    let mut start = |c: &mut Counters| -> Option<Lane> {
+        while next < end {
+            let i = next;
+            next += 1;
+            let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
+            let ray = SlabRay::new(o, d);
+            c.ray_box += 1;
+            if let Some(t) = ray.entry(root.min, root.max, tmin, tmax) {
+                let n = Entry {
+                    offset: root.offset,
+                    count: root.count as u32,
+                    t,
+                };
+                return Some(Lane {
+                    q: Query {
+                        o,
+                        d,
+                        ray,
+                        tmin,
+                        tmax,
+                    },
+                    best_t: tmax,
+                    best_p: MISS,
+                    bu: 0.0,
+                    bv: 0.0,
+                    n,
+                    sp: 0,
+                    k: i - base,
+                });
+            }
+        }
+        None
+    };
+    let mut slots: [Option<Lane>; MAX_LANES] = Default::default();
+    let mut stacks = [[Entry::default(); MAX_DEPTH]; MAX_LANES];
+    let mut active = 0;
+    for s in slots.iter_mut().take(lanes) {
+        *s = start(c);
+        active += s.is_some() as usize;
+    }
+    while active > 0 {
+        for (slot, stack) in slots.iter_mut().zip(stacks.iter_mut()).take(lanes) {
+            let Some(l) = slot.as_mut() else {
+                continue;
+            };
+            // One step: visit `l.n`, then choose the next node (descend or pop).
+            let n = l.n;
+            let mut hit_any = false;
+            if n.count != 0 {
+                c.leaves += 1;
+                let first = n.offset as usize;
+                let last = first + n.count as usize;
+                if ANY {
+                    for tri in &bvh.tris[first..last] {
+                        c.ray_tri += 1;
+                        let (q, t) = (&l.q, tri);
+                        if intersect_triangle(q.o, q.d, t[0], t[1], t[2], q.tmin, q.tmax)
+                            .is_some()
+                        {
+                            hit_any = true;
+                            break;
+                        }
+                    }
+                } else {
+                    c.ray_tri += n.count as u64;
+                    for (p, tri) in (first..last).zip(&bvh.tris[first..last]) {
+                        let q = &l.q;
+                        if let Some(h) =
+                            intersect_triangle(q.o, q.d, tri[0], tri[1], tri[2], q.tmin, l.best_t)
+                        {
+                            let id = bvh.ids[p];
+                            if closer(h.t, id, l.best_t, l.best_p) {
+                                (l.best_t, l.best_p, l.bu, l.bv) = (h.t, id, h.u, h.v);
+                            }
+                        }
+                    }
+                }
+            } else {
+                c.nodes += 1;
+                c.ray_box += 2;
+                let pair = &pairs[n.offset as usize];
+                let (mask, e) = l.q.ray.entry2_masked(&pair.boxes, l.q.tmin, l.best_t);
+                if mask != 0 {
+                    let near = if mask == 3 {
+                        (e[1] < e[0]) as usize
+                    } else {
+                        (mask >> 1) as usize
+                    };
+                    if mask == 3 {
+                        let far = near ^ 1;
+                        stack[l.sp] = Entry {
+                            offset: pair.offset[far],
+                            count: pair.count[far] as u32,
+                            t: e[far],
+                        };
+                        l.sp += 1;
+                    }
+                    l.n = Entry {
+                        offset: pair.offset[near],
+                        count: pair.count[near] as u32,
+                        t: e[near],
+                    };
+                    prefetch_entry(bvh, l.n);
+                    continue;
+                }
+            }
+            let mut finished = hit_any;
+            if !finished {
+                // Pop the next subtree still worth entering (closest hit: inclusive cull).
+                finished = true;
+                while l.sp > 0 {
+                    l.sp -= 1;
+                    let nx = stack[l.sp];
+                    if ANY || nx.t <= l.best_t {
+                        l.n = nx;
+                        prefetch_entry(bvh, nx);
+                        finished = false;
+                        break;
+                    }
+                }
+            }
+            if finished {
+                done(l, hit_any);
+                *slot = start(c);
+                if slot.is_none() {
+                    active -= 1;
+                }
+            }
+        }
+    }
+}
+
+/// [`closest_chunk`] with `lanes` rays in flight (see [`interleaved_chunk`]).
+pub(super) fn closest_chunk_interleaved(
+    bvh: &Bvh,
+    rays: &RayBatch,
+    range: Range<usize>,
+    lanes: usize,
+    out: HitsMut<'_>,
+) -> Stats {
+    let mut c = Counters::default();
+    let nrays = range.len();
+    interleaved_chunk::<false>(bvh, rays, range, lanes, &mut c, |l, _| {
+        if l.best_p != MISS {
+            let k = l.k;
+            (out.t[k], out.prim[k], out.u[k], out.v[k]) = (l.best_t, l.best_p, l.bu, l.bv);
+        }
+    });
+    c.stats(nrays)
+}
+
+/// [`occluded_chunk`] with `lanes` rays in flight (see [`interleaved_chunk`]).
+pub(super) fn occluded_chunk_interleaved(
+    bvh: &Bvh,
+    rays: &RayBatch,
+    range: Range<usize>,
+    lanes: usize,
+    out: &mut [bool],
+) -> Stats {
+    let mut c = Counters::default();
+    let nrays = range.len();
+    interleaved_chunk::<true>(bvh, rays, range, lanes, &mut c, |l, hit| {
+        out[l.k] = hit;
+    });
+    c.stats(nrays)
+}
