@@ -16,8 +16,19 @@
 use super::{Config, Node, NodePair};
 use crate::geom::Aabb;
 use crate::scene::TriangleSoup;
-use glam::Vec4;
+use glam::{BVec4A, Vec4};
+
 use rayon::prelude::*;
+
+/// `v` with its `w` lane zeroed, by a bit mask (no arithmetic on `w`). The build keeps the
+/// triangle id's bits in `min.w`, which read as a float are subnormal for ids below 2^23: any
+/// SSE add, subtract, multiply or divide with a subnormal operand takes a microcode assist of
+/// ~100+ cycles on Intel CPUs, so every arithmetic use of a box or centroid zeroes `w` first.
+/// (x, y, z are untouched: the tree is the same bit for bit.)
+#[inline(always)]
+fn xyz(v: Vec4) -> Vec4 {
+    Vec4::select(BVec4A::new(true, true, true, false), v, Vec4::ZERO)
+}
 
 /// Depth below which SAH splits are allowed; deeper nodes are split at the object median,
 /// which halves the count, so the depth is at most `MAX_SAH_DEPTH + log2(n) + 1`.
@@ -66,7 +77,7 @@ impl Box4 {
     /// Surface area (0 when empty), as [`Aabb::surface_area`].
     #[inline(always)]
     fn area(self) -> f32 {
-        let e = self.max - self.min;
+        let e = xyz(self.max) - xyz(self.min);
         if !(e.x >= 0.0 && e.y >= 0.0 && e.z >= 0.0) {
             return 0.0;
         }
@@ -94,10 +105,12 @@ impl PrimRef {
     }
 
     /// Twice the box centre (`min + max`): the halving is skipped since only comparisons and
-    /// bin positions relative to the (equally doubled) centroid bounds are needed.
+    /// bin positions relative to the (equally doubled) centroid bounds are needed. `w` is 0
+    /// (the id in `min.w` masked out, see [`xyz`]; `max.w` is 0), so centroid bounds and bin
+    /// maps never hold a subnormal either.
     #[inline(always)]
     fn centroid2(&self) -> Vec4 {
-        self.0.min + self.0.max
+        xyz(self.0.min) + self.0.max
     }
 }
 
