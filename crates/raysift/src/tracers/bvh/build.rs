@@ -17,14 +17,13 @@ use super::{Config, Node, NodePair};
 use crate::geom::Aabb;
 use crate::scene::TriangleSoup;
 use glam::{BVec4A, Vec4};
-
 use rayon::prelude::*;
 
 /// `v` with its `w` lane zeroed, by a bit mask (no arithmetic on `w`). The build keeps the
-/// triangle id's bits in `min.w`, which read as a float are subnormal for ids below 2^23: any
-/// SSE add, subtract, multiply or divide with a subnormal operand takes a microcode assist of
-/// ~100+ cycles on Intel CPUs, so every arithmetic use of a box or centroid zeroes `w` first.
-/// (x, y, z are untouched: the tree is the same bit for bit.)
+/// triangle id's bits in `min.w`, which read as a float are subnormal for ids below 2^23, and
+/// SSE arithmetic on subnormal operands can take microcode assists on x86 CPUs; so every
+/// arithmetic use of a box or centroid zeroes `w` first. (x, y, z are untouched: the tree is
+/// the same bit for bit. No measurable build-time change on our 2-vCPU Xeon VM.)
 #[inline(always)]
 fn xyz(v: Vec4) -> Vec4 {
     Vec4::select(BVec4A::new(true, true, true, false), v, Vec4::ZERO)

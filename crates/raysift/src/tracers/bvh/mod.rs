@@ -21,12 +21,14 @@
 //! (without the lowered entry, the tests do find lost hits on the Cornell box's walls).
 //!
 //! A big scene's traversal is bound by memory latency (one dependent cache miss per level), not
-//! arithmetic: the 4-wide box test alone changed nothing measurable on sphere:1M. So by default
-//! each thread keeps [`Config::lanes`] rays in flight, advancing each by one node per round and
-//! prefetching the node (pair or leaf triangles) it will visit next, so the misses of different
-//! rays overlap (software pipelining across rays; each ray's walk, work counts and answer are
-//! unchanged). On sphere:1M (one thread) this took random rays from 0.53 to 1.4 Mrays per
-//! CPU-second and camera rays from 2.1 to 2.6. `lanes=1` is the one-ray-at-a-time walk,
+//! arithmetic: the 4-wide box test alone changed nothing measurable on sphere:1M. So when the
+//! tree is bigger than [`AUTO_LANES_BYTES`] each thread keeps 8 rays in flight
+//! ([`Config::lanes`]), advancing each by one node per round and prefetching the node (pair or
+//! leaf triangles) it will visit next, so the misses of different rays overlap (software
+//! pipelining across rays; each ray's walk, work counts and answer are unchanged). On sphere:1M
+//! (one thread, 2-vCPU VM shared with other jobs) this took random rays from about 0.55 to
+//! 1.0–1.4 Mrays per CPU-second (occlusion 0.6 to 1.3–1.6); coherent camera rays gained little
+//! (2.2–2.4 to 2.3–2.6, within noise). Smaller trees use `lanes=1`, the one-ray-at-a-time walk,
 //! instantiated per ray octant so the near/far plane choice is compile-time.
 //!
 //! **Memory layout** (bytes per triangle; [`Bvh::bytes`]):
@@ -61,6 +63,9 @@ use std::sync::Arc;
 /// Rays per parallel task (as `naive`): amortises scheduling, balances 2–64 cores.
 const CHUNK: usize = 256;
 
+/// Tree size (bytes, [`Bvh::bytes`]) above which `lanes=0` traces 8 rays in flight.
+pub const AUTO_LANES_BYTES: usize = 4 << 20;
+
 /// Build options (`bvh:key=value` on the command line). Defaults are the fields' documented values.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
@@ -79,9 +84,12 @@ pub struct Config {
     /// Nodes with at least this many triangles build their children in parallel and bin in
     /// parallel. Default 4096: below it, task overhead outweighs the work.
     pub parallel_threshold: usize,
-    /// Rays traced in flight per thread (1..=16): each round advances each by one node and
-    /// prefetches its next node, so their cache misses overlap (see `traverse`). 1 traces one
-    /// ray at a time with a walk specialised per ray octant. Default 8.
+    /// Rays traced in flight per thread (0..=16): each round advances each by one node and
+    /// prefetches its next node, so their cache misses overlap (see the module doc). 1 traces
+    /// one ray at a time with a walk specialised per ray octant. Default 0, automatic: 8 when
+    /// the tree is bigger than [`AUTO_LANES_BYTES`] (it no longer fits in cache, so misses
+    /// dominate), else 1 (in cache the interleaving's bookkeeping and mixed branch history cost
+    /// more than it saves: sphere:10k camera rays 5.0 vs 3.9 Mrays per CPU-second).
     pub lanes: usize,
 }
 
@@ -93,7 +101,7 @@ impl Default for Config {
             traversal_cost: 1.0,
             intersection_cost: 1.0,
             parallel_threshold: 4096,
-            lanes: 8,
+            lanes: 0,
         }
     }
 }
@@ -111,9 +119,9 @@ impl Config {
                 self.max_leaf
             ));
         }
-        if !(1..=traverse::MAX_LANES).contains(&self.lanes) {
+        if self.lanes > traverse::MAX_LANES {
             return bad(format!(
-                "lanes must be in 1..={}, got {}",
+                "lanes must be in 0..={}, got {}",
                 traverse::MAX_LANES,
                 self.lanes
             ));
@@ -460,6 +468,15 @@ impl BvhTracer {
     pub fn bvh(&self) -> &Bvh {
         &self.bvh
     }
+
+    /// Rays in flight per thread for the current tree ([`Config::lanes`], 0 resolved).
+    pub fn lanes(&self) -> usize {
+        match self.cfg.lanes {
+            0 if self.bvh.bytes() > AUTO_LANES_BYTES => 8,
+            0 => 1,
+            l => l,
+        }
+    }
 }
 
 impl Tracer for BvhTracer {
@@ -480,7 +497,7 @@ impl Tracer for BvhTracer {
     }
 
     fn intersect(&self, rays: &RayBatch, hits: &mut HitBatch) -> Stats {
-        let lanes = self.cfg.lanes;
+        let lanes = self.lanes();
         par_ray_chunks(rays, hits, CHUNK, |range, out| {
             if lanes == 1 {
                 traverse::closest_chunk(&self.bvh, rays, range, out)
@@ -491,7 +508,7 @@ impl Tracer for BvhTracer {
     }
 
     fn occluded(&self, rays: &RayBatch, occluded: &mut Vec<bool>) -> Stats {
-        let lanes = self.cfg.lanes;
+        let lanes = self.lanes();
         par_occlusion_chunks(rays, occluded, CHUNK, |range, out| {
             if lanes == 1 {
                 traverse::occluded_chunk(&self.bvh, rays, range, out)

@@ -73,9 +73,13 @@ fn small_cfg() -> Config {
     }
 }
 
-fn cfgs() -> [Config; 3] {
+fn cfgs() -> [Config; 4] {
     [
         Config::default(),
+        Config {
+            lanes: 8,
+            ..Config::default()
+        },
         small_cfg(),
         Config {
             bins: 2,
@@ -502,4 +506,25 @@ fn validate_catches_corruption() {
     let mut b = good.clone();
     b.pairs[0].boxes.y[0] += 0.5; // root does not contain its children
     assert!(b.validate(&scene).is_err());
+}
+
+#[test]
+fn automatic_lanes_follow_the_tree_size() {
+    let small = Arc::new(procedural::icosphere(2000));
+    let (_, t) = tracers(&small, Config::default());
+    assert!(t.bvh().bytes() <= AUTO_LANES_BYTES);
+    assert_eq!(t.lanes(), 1);
+    // About 80 B per triangle: 100k triangles is well above 4 MiB.
+    let big = Arc::new(procedural::soup(100_000, 3));
+    let (naive, t) = tracers(&big, Config::default());
+    assert!(t.bvh().bytes() > AUTO_LANES_BYTES);
+    assert_eq!(t.lanes(), 8);
+    let rays = random_in_box(&big.bounds(), 2000, 5);
+    let (want, _) = naive.intersect_timed(&rays);
+    let (got, _) = t.intersect_timed(&rays);
+    assert_eq!(want.t, got.t);
+    assert_eq!(want.prim, got.prim);
+    let (_, t) = tracers(&small, Config { lanes: 5, ..Config::default() });
+    assert_eq!(t.lanes(), 5);
+    assert!(Config { lanes: 17, ..Config::default() }.check().is_err());
 }
