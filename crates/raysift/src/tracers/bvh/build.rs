@@ -23,7 +23,8 @@ use rayon::prelude::*;
 /// triangle id's bits in `min.w`, which read as a float are subnormal for ids below 2^23, and
 /// SSE arithmetic on subnormal operands can take microcode assists on x86 CPUs; so every
 /// arithmetic use of a box or centroid zeroes `w` first. (x, y, z are untouched: the tree is
-/// the same bit for bit. No measurable build-time change on our 2-vCPU Xeon VM.)
+/// the same bit for bit. sphere:1M, one thread, 4 alternating pairs of runs: build CPU time
+/// 0.87-1.05 s against 0.94-1.25 s, lower in every pair.)
 #[inline(always)]
 fn xyz(v: Vec4) -> Vec4 {
     Vec4::select(BVec4A::new(true, true, true, false), v, Vec4::ZERO)
