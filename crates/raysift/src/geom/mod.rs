@@ -17,7 +17,7 @@ pub use aabb::Aabb;
 pub use conebox::cone_box_overlap;
 pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};
-pub use slab::SlabRay;
+pub use slab::{BoxPair, SlabRay};
 pub use triangle::{intersect_triangle, TriHit};
 pub use triangle4::{intersect_triangle4, Hit4, Tri4};
 pub use tribox::{tri_box_edge_axes, tri_box_overlap};

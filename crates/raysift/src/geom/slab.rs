@@ -81,6 +81,195 @@ impl SlabRay {
     }
 }
 
+/// Two boxes side by side, structure of arrays, for [`SlabRay::entry2`]: per axis
+/// `[min_a, min_b, max_a, max_b]` (one 16-byte SIMD lane group per axis, 48 bytes in all).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct BoxPair {
+    /// `[min_a.x, min_b.x, max_a.x, max_b.x]`.
+    pub x: [f32; 4],
+    /// `[min_a.y, min_b.y, max_a.y, max_b.y]`.
+    pub y: [f32; 4],
+    /// `[min_a.z, min_b.z, max_a.z, max_b.z]`.
+    pub z: [f32; 4],
+}
+
+impl BoxPair {
+    /// Two empty boxes (`min = +inf`, `max = -inf`): never entered.
+    pub const EMPTY: BoxPair = BoxPair {
+        x: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
+        y: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
+        z: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
+    };
+
+    /// Box `i` (0 or 1) as `(min, max)`.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> (Vec3, Vec3) {
+        (
+            Vec3::new(self.x[i], self.y[i], self.z[i]),
+            Vec3::new(self.x[i + 2], self.y[i + 2], self.z[i + 2]),
+        )
+    }
+
+    /// Sets box `i` (0 or 1).
+    #[inline(always)]
+    pub fn set(&mut self, i: usize, min: Vec3, max: Vec3) {
+        (self.x[i], self.y[i], self.z[i]) = (min.x, min.y, min.z);
+        (self.x[i + 2], self.y[i + 2], self.z[i + 2]) = (max.x, max.y, max.z);
+    }
+}
+
+impl SlabRay {
+    /// [`SlabRay::entry`] of both boxes of `b` at once: `(mask, entries)` where bit `i` of
+    /// `mask` is set when box `i` is entered and `entries[i]` is then its (lowered) entry,
+    /// bit for bit what `entry` returns (`entries[i]` is meaningless when the bit is clear).
+    ///
+    /// The const parameters are the ray's octant ([`SlabRay::neg`], checked in debug builds),
+    /// so the near/far plane choice is fixed at compile time: on x86_64 each axis is one SSE
+    /// subtract, multiply and (for negative directions) half swap for both boxes, then the same
+    /// max/min chain as the scalar test (`maxps(t, e)` is exactly `if t > e { t } else { e }`,
+    /// so NaN slabs are dropped the same way). Elsewhere it calls `entry` twice.
+    #[inline(always)]
+    pub fn entry2<const NX: bool, const NY: bool, const NZ: bool>(
+        &self,
+        b: &BoxPair,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 2]) {
+        debug_assert_eq!(self.neg, [NX, NY, NZ]);
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        {
+            self.entry2_sse::<NX, NY, NZ>(b, tmin, tmax)
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        {
+            self.entry2_scalar(b, tmin, tmax)
+        }
+    }
+
+    /// [`SlabRay::entry2`] for any octant (dispatches on [`SlabRay::neg`]; for tests and cold
+    /// paths, the traversal instantiates its loop per octant instead).
+    pub fn entry2_dyn(&self, b: &BoxPair, tmin: f32, tmax: f32) -> (u32, [f32; 2]) {
+        match self.neg {
+            [false, false, false] => self.entry2::<false, false, false>(b, tmin, tmax),
+            [false, false, true] => self.entry2::<false, false, true>(b, tmin, tmax),
+            [false, true, false] => self.entry2::<false, true, false>(b, tmin, tmax),
+            [false, true, true] => self.entry2::<false, true, true>(b, tmin, tmax),
+            [true, false, false] => self.entry2::<true, false, false>(b, tmin, tmax),
+            [true, false, true] => self.entry2::<true, false, true>(b, tmin, tmax),
+            [true, true, false] => self.entry2::<true, true, false>(b, tmin, tmax),
+            [true, true, true] => self.entry2::<true, true, true>(b, tmin, tmax),
+        }
+    }
+
+    /// [`SlabRay::entry2`] for any octant without branching on it: the near/far planes are
+    /// chosen by bit masks built from [`SlabRay::neg`] (for loops that interleave rays of
+    /// different octants). Same results bit for bit.
+    #[inline(always)]
+    pub fn entry2_masked(&self, b: &BoxPair, tmin: f32, tmax: f32) -> (u32, [f32; 2]) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        {
+            // SAFETY: as in `entry2_sse`: SSE/SSE2 only (compiled for them), no raw pointers;
+            // checked against the scalar reference by `entry2_is_entry_bit_for_bit`.
+            unsafe { self.entry2_sse_inner::<false, false, false, true>(b, tmin, tmax) }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        {
+            self.entry2_scalar(b, tmin, tmax)
+        }
+    }
+
+    /// The reference for [`SlabRay::entry2`]: [`SlabRay::entry`] on each box.
+    #[inline(always)]
+    pub fn entry2_scalar(&self, b: &BoxPair, tmin: f32, tmax: f32) -> (u32, [f32; 2]) {
+        let (a0, a1) = b.get(0);
+        let (b0, b1) = b.get(1);
+        let ea = self.entry(a0, a1, tmin, tmax);
+        let eb = self.entry(b0, b1, tmin, tmax);
+        (
+            ea.is_some() as u32 | (eb.is_some() as u32) << 1,
+            [ea.unwrap_or(0.0), eb.unwrap_or(0.0)],
+        )
+    }
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    #[inline(always)]
+    fn entry2_sse<const NX: bool, const NY: bool, const NZ: bool>(
+        &self,
+        b: &BoxPair,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 2]) {
+        // SAFETY: the only requirement of these intrinsics is that the CPU supports SSE and
+        // SSE2, which this function is compiled only for (`cfg(target_feature = "sse2")`, part
+        // of the x86_64 baseline). No raw pointers: the loads go through glam's Vec4 (an __m128
+        // on this target). Exercised against the scalar reference by
+        // `entry2_is_entry_bit_for_bit`.
+        unsafe { self.entry2_sse_inner::<NX, NY, NZ, false>(b, tmin, tmax) }
+    }
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    #[inline(always)]
+    /// With `MASKED`, the octant comes from `self.neg` at run time (the const signs unused).
+    unsafe fn entry2_sse_inner<const NX: bool, const NY: bool, const NZ: bool, const MASKED: bool>(
+        &self,
+        b: &BoxPair,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 2]) {
+        use std::arch::x86_64::*;
+        use glam::Vec4;
+        let o = self.origin;
+        let inv = self.inv_dir;
+        // Lanes of `t`: [t(min_a), t(min_b), t(max_a), t(max_b)]; after the octant swap lanes
+        // 0, 1 are the near planes' distances and lanes 2, 3 the far planes'.
+        #[inline(always)]
+        unsafe fn axis<const NEG: bool, const MASKED: bool>(
+            v: [f32; 4],
+            o: f32,
+            inv: f32,
+            neg: bool,
+        ) -> __m128 {
+            let t = _mm_mul_ps(
+                _mm_sub_ps(Vec4::from_array(v).into(), _mm_set1_ps(o)),
+                _mm_set1_ps(inv),
+            );
+            if MASKED {
+                let m = _mm_set1_ps(f32::from_bits(0u32.wrapping_sub(neg as u32)));
+                let swapped = _mm_shuffle_ps::<0b01_00_11_10>(t, t);
+                _mm_or_ps(_mm_and_ps(m, swapped), _mm_andnot_ps(m, t))
+            } else if NEG {
+                _mm_shuffle_ps::<0b01_00_11_10>(t, t)
+            } else {
+                t
+            }
+        }
+        let neg = self.neg;
+        let tx = axis::<NX, MASKED>(b.x, o.x, inv.x, neg[0]);
+        let ty = axis::<NY, MASKED>(b.y, o.y, inv.y, neg[1]);
+        let tz = axis::<NZ, MASKED>(b.z, o.z, inv.z, neg[2]);
+        // Same order and operand roles as `entry`: `maxps(t, e)` = `if t > e { t } else { e }`.
+        let mut enter = _mm_set1_ps(tmin);
+        enter = _mm_max_ps(tx, enter);
+        enter = _mm_max_ps(ty, enter);
+        enter = _mm_max_ps(tz, enter);
+        let s = _mm_set1_ps(super::BOX_EXIT_SLACK);
+        let mut exit = _mm_set1_ps(tmax);
+        exit = _mm_min_ps(_mm_mul_ps(tx, s), exit);
+        exit = _mm_min_ps(_mm_mul_ps(ty, s), exit);
+        exit = _mm_min_ps(_mm_mul_ps(tz, s), exit);
+        // enter - |enter| * slack (abs clears the sign bit, as f32::abs).
+        let abs = _mm_andnot_ps(_mm_set1_ps(-0.0), enter);
+        let enter = _mm_sub_ps(enter, _mm_mul_ps(abs, _mm_set1_ps(BOX_ENTRY_SLACK)));
+        // Exits (lanes 2, 3) down to lanes 0, 1.
+        let exit = _mm_movehl_ps(exit, exit);
+        let mask = (_mm_movemask_ps(_mm_cmple_ps(enter, exit)) & 3) as u32;
+        let e0 = _mm_cvtss_f32(enter);
+        let e1 = _mm_cvtss_f32(_mm_shuffle_ps::<0b01_01_01_01>(enter, enter));
+        (mask, [e0, e1])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,5 +332,54 @@ mod tests {
         // Outside the slab, parallel: missed.
         let r = SlabRay::new(Vec3::new(0.0, 1.5, 0.0), Vec3::X);
         assert!(r.entry(b.min, b.max, 0.0, f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn entry2_is_entry_bit_for_bit() {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(11);
+        let mut r = |k: i32| -> f32 {
+            match rng.gen_range(0..6) {
+                0 => 0.0,
+                1 => -0.0,
+                2 => rng.gen_range(-k..=k) as f32,
+                _ => rng.gen_range(-2.0..2.0),
+            }
+        };
+        let mut hits = 0;
+        for _ in 0..300_000 {
+            let mut bp = BoxPair::EMPTY;
+            for i in 0..2 {
+                let a = Vec3::new(r(1), r(1), r(1));
+                let b = Vec3::new(r(1), r(1), r(1));
+                if r(1) != 1.0 {
+                    bp.set(i, a.min(b), a.max(b));
+                }
+            }
+            let o = Vec3::new(r(2), r(2), r(2));
+            let d = Vec3::new(r(1), r(1), r(1));
+            let (tmin, tmax) = match r(1) as i32 {
+                1 => (0.5, 1.5),
+                -1 => (0.0, 0.25),
+                _ => (0.0, f32::INFINITY),
+            };
+            let sr = SlabRay::new(o, d);
+            let (m, e) = sr.entry2_dyn(&bp, tmin, tmax);
+            let (ms, es) = sr.entry2_scalar(&bp, tmin, tmax);
+            assert_eq!(m, ms, "{bp:?} {o} {d} {tmin} {tmax}");
+            let (mm, em) = sr.entry2_masked(&bp, tmin, tmax);
+            assert_eq!(mm, ms, "masked: {bp:?} {o} {d} {tmin} {tmax}");
+            for i in 0..2 {
+                if mm >> i & 1 == 1 {
+                    assert_eq!(em[i].to_bits(), es[i].to_bits(), "masked: {bp:?} {o} {d}");
+                }
+            }
+            for i in 0..2 {
+                if m >> i & 1 == 1 {
+                    assert_eq!(e[i].to_bits(), es[i].to_bits(), "{bp:?} {o} {d}");
+                    hits += 1;
+                }
+            }
+        }
+        assert!(hits > 10_000, "{hits}");
     }
 }

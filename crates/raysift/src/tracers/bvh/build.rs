@@ -16,8 +16,19 @@
 use super::{Config, Node, NodePair};
 use crate::geom::Aabb;
 use crate::scene::TriangleSoup;
-use glam::Vec4;
+use glam::{BVec4A, Vec4};
 use rayon::prelude::*;
+
+/// `v` with its `w` lane zeroed, by a bit mask (no arithmetic on `w`). The build keeps the
+/// triangle id's bits in `min.w`, which read as a float are subnormal for ids below 2^23, and
+/// SSE arithmetic on subnormal operands can take microcode assists on x86 CPUs; so every
+/// arithmetic use of a box or centroid zeroes `w` first. (x, y, z are untouched: the tree is
+/// the same bit for bit. sphere:1M, one thread, 4 alternating pairs of runs: build CPU time
+/// 0.87-1.05 s against 0.94-1.25 s, lower in every pair.)
+#[inline(always)]
+fn xyz(v: Vec4) -> Vec4 {
+    Vec4::select(BVec4A::new(true, true, true, false), v, Vec4::ZERO)
+}
 
 /// Depth below which SAH splits are allowed; deeper nodes are split at the object median,
 /// which halves the count, so the depth is at most `MAX_SAH_DEPTH + log2(n) + 1`.
@@ -66,7 +77,7 @@ impl Box4 {
     /// Surface area (0 when empty), as [`Aabb::surface_area`].
     #[inline(always)]
     fn area(self) -> f32 {
-        let e = self.max - self.min;
+        let e = xyz(self.max) - xyz(self.min);
         if !(e.x >= 0.0 && e.y >= 0.0 && e.z >= 0.0) {
             return 0.0;
         }
@@ -94,10 +105,12 @@ impl PrimRef {
     }
 
     /// Twice the box centre (`min + max`): the halving is skipped since only comparisons and
-    /// bin positions relative to the (equally doubled) centroid bounds are needed.
+    /// bin positions relative to the (equally doubled) centroid bounds are needed. `w` is 0
+    /// (the id in `min.w` masked out, see [`xyz`]; `max.w` is 0), so centroid bounds and bin
+    /// maps never hold a subnormal either.
     #[inline(always)]
     fn centroid2(&self) -> Vec4 {
-        self.0.min + self.0.max
+        xyz(self.0.min) + self.0.max
     }
 }
 
@@ -138,19 +151,24 @@ impl Sub {
                 out.push(NodePair::UNUSED);
                 let l = left.flatten(out);
                 let r = right.flatten(out);
-                out[p] = NodePair([l, r]);
+                out[p] = NodePair::new([l, r]);
                 Node::interior(bounds, axis, p as u32)
             }
             Sub::Flat { root, pairs } => {
                 let base = out.len() as u32;
-                let rebase = |mut n: Node| {
-                    if !n.is_leaf() {
-                        n.offset += base;
+                out.extend(pairs.into_iter().map(|mut p| {
+                    for i in 0..2 {
+                        if p.count[i] == 0 {
+                            p.offset[i] += base;
+                        }
                     }
-                    n
-                };
-                out.extend(pairs.into_iter().map(|p| NodePair(p.0.map(rebase))));
-                rebase(root)
+                    p
+                }));
+                let mut root = root;
+                if !root.is_leaf() {
+                    root.offset += base;
+                }
+                root
             }
         }
     }
@@ -186,7 +204,8 @@ pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
     let root = ctx.build_par(&mut refs, 0, 0, bounds, cbounds);
     let mut pairs = Vec::with_capacity(1 + root.pair_count());
     pairs.push(NodePair::UNUSED);
-    pairs[0].0[0] = root.flatten(&mut pairs);
+    let root = root.flatten(&mut pairs);
+    pairs[0].set(0, root);
     let ids = refs.iter().map(|r| r.id()).collect();
     Built { pairs, ids }
 }
@@ -346,7 +365,7 @@ impl Ctx<'_> {
                 let (l, r) = refs.split_at_mut(mid);
                 let left = self.build_seq(l, first, depth + 1, lb, lc, out, scratch);
                 let right = self.build_seq(r, first + mid, depth + 1, rb, rc, out, scratch);
-                out[p] = NodePair([left, right]);
+                out[p] = NodePair::new([left, right]);
                 Node::interior(bounds.aabb(), axis as u8, p as u32)
             }
         }

@@ -63,23 +63,29 @@ fn assert_same(scene: &Arc<Scene>, cfg: Config, rays: &RayBatch) -> usize {
 }
 
 /// Small leaves and a low parallel threshold so the tests exercise deep trees and the parallel
-/// build path even on small scenes.
+/// build path even on small scenes; one ray at a time (the octant-specialised walk).
 fn small_cfg() -> Config {
     Config {
         max_leaf: 2,
         parallel_threshold: 64,
+        lanes: 1,
         ..Config::default()
     }
 }
 
-fn cfgs() -> [Config; 3] {
+fn cfgs() -> [Config; 4] {
     [
         Config::default(),
+        Config {
+            lanes: 8,
+            ..Config::default()
+        },
         small_cfg(),
         Config {
             bins: 2,
             max_leaf: 1,
             parallel_threshold: 8,
+            lanes: 3,
             ..Config::default()
         },
     ]
@@ -473,11 +479,11 @@ fn validate_catches_corruption() {
     let good = Bvh::build(&scene, &small_cfg()).unwrap();
     good.validate(&scene).unwrap();
     let leaf_pair = (1..good.pairs.len())
-        .find(|&p| good.pairs[p].0[0].is_leaf())
+        .find(|&p| good.pairs[p].count[0] != 0)
         .unwrap();
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].0[0].max.x -= 1e-3; // leaf box no longer contains its triangles
+    b.pairs[leaf_pair].boxes.x[2] -= 1e-3; // leaf box no longer contains its triangles
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
@@ -490,14 +496,35 @@ fn validate_catches_corruption() {
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].0[0].count += 1; // leaf ranges overlap
+    b.pairs[leaf_pair].count[0] += 1; // leaf ranges overlap
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].0[0].offset = good.pairs.len() as u32; // child pair out of range
+    b.pairs[0].offset[0] = good.pairs.len() as u32; // child pair out of range
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].0[0].min.y += 0.5; // root does not contain its children
+    b.pairs[0].boxes.y[0] += 0.5; // root does not contain its children
     assert!(b.validate(&scene).is_err());
+}
+
+#[test]
+fn automatic_lanes_follow_the_tree_size() {
+    let small = Arc::new(procedural::icosphere(2000));
+    let (_, t) = tracers(&small, Config::default());
+    assert!(t.bvh().bytes() <= AUTO_LANES_BYTES);
+    assert_eq!(t.lanes(), 1);
+    // About 80 B per triangle: 100k triangles is well above 4 MiB.
+    let big = Arc::new(procedural::soup(100_000, 3));
+    let (naive, t) = tracers(&big, Config::default());
+    assert!(t.bvh().bytes() > AUTO_LANES_BYTES);
+    assert_eq!(t.lanes(), 8);
+    let rays = random_in_box(&big.bounds(), 2000, 5);
+    let (want, _) = naive.intersect_timed(&rays);
+    let (got, _) = t.intersect_timed(&rays);
+    assert_eq!(want.t, got.t);
+    assert_eq!(want.prim, got.prim);
+    let (_, t) = tracers(&small, Config { lanes: 5, ..Config::default() });
+    assert_eq!(t.lanes(), 5);
+    assert!(Config { lanes: 17, ..Config::default() }.check().is_err());
 }
