@@ -97,9 +97,24 @@ pub struct BoxPair {
 impl BoxPair {
     /// Two empty boxes (`min = +inf`, `max = -inf`): never entered.
     pub const EMPTY: BoxPair = BoxPair {
-        x: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
-        y: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
-        z: [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY],
+        x: [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ],
+        y: [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ],
+        z: [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ],
     };
 
     /// Box `i` (0 or 1) as `(min, max)`.
@@ -211,14 +226,19 @@ impl SlabRay {
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     #[inline(always)]
     /// With `MASKED`, the octant comes from `self.neg` at run time (the const signs unused).
-    unsafe fn entry2_sse_inner<const NX: bool, const NY: bool, const NZ: bool, const MASKED: bool>(
+    unsafe fn entry2_sse_inner<
+        const NX: bool,
+        const NY: bool,
+        const NZ: bool,
+        const MASKED: bool,
+    >(
         &self,
         b: &BoxPair,
         tmin: f32,
         tmax: f32,
     ) -> (u32, [f32; 2]) {
-        use std::arch::x86_64::*;
         use glam::Vec4;
+        use std::arch::x86_64::*;
         let o = self.origin;
         let inv = self.inv_dir;
         // Lanes of `t`: [t(min_a), t(min_b), t(max_a), t(max_b)]; after the octant swap lanes

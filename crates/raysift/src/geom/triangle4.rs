@@ -99,8 +99,16 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let o = [splat(origin.x), splat(origin.y), splat(origin.z)];
     let d = [splat(dir.x), splat(dir.y), splat(dir.z)];
     let v0 = tri.v0;
-    let e1 = [sub(tri.v1[0], v0[0]), sub(tri.v1[1], v0[1]), sub(tri.v1[2], v0[2])];
-    let e2 = [sub(tri.v2[0], v0[0]), sub(tri.v2[1], v0[1]), sub(tri.v2[2], v0[2])];
+    let e1 = [
+        sub(tri.v1[0], v0[0]),
+        sub(tri.v1[1], v0[1]),
+        sub(tri.v1[2], v0[2]),
+    ];
+    let e2 = [
+        sub(tri.v2[0], v0[0]),
+        sub(tri.v2[1], v0[1]),
+        sub(tri.v2[2], v0[2]),
+    ];
     let p = cross(d, e2);
     let det = dot(e1, p);
     let inv_det = [1.0 / det[0], 1.0 / det[1], 1.0 / det[2], 1.0 / det[3]];
@@ -144,8 +152,8 @@ mod tests {
                 let a = base + Vec3::new(r(1.0), r(1.0), r(1.0)) * (l % 2) as f32;
                 let b = base + Vec3::new(r(1.0), r(1.0), r(1.0));
                 let c = match (n + l) % 7 {
-                    0 => a,                     // degenerate (point-like edge)
-                    1 => a + (b - a) * 0.5,     // collinear
+                    0 => a,                 // degenerate (point-like edge)
+                    1 => a + (b - a) * 0.5, // collinear
                     _ => base + Vec3::new(r(1.0), r(1.0), r(1.0)),
                 };
                 *t = if n % 11 == 0 { [a; 3] } else { [a, b, c] };

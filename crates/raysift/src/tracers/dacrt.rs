@@ -1063,8 +1063,7 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes =
-            (4 * ntri + 36 * len + 44 * ncones + 8 * task.perm.len()) as u64;
+        task.st.peak_bytes = (4 * ntri + 36 * len + 44 * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];

@@ -524,7 +524,18 @@ fn automatic_lanes_follow_the_tree_size() {
     let (got, _) = t.intersect_timed(&rays);
     assert_eq!(want.t, got.t);
     assert_eq!(want.prim, got.prim);
-    let (_, t) = tracers(&small, Config { lanes: 5, ..Config::default() });
+    let (_, t) = tracers(
+        &small,
+        Config {
+            lanes: 5,
+            ..Config::default()
+        },
+    );
     assert_eq!(t.lanes(), 5);
-    assert!(Config { lanes: 17, ..Config::default() }.check().is_err());
+    assert!(Config {
+        lanes: 17,
+        ..Config::default()
+    }
+    .check()
+    .is_err());
 }

@@ -405,8 +405,7 @@ fn interleaved_chunk<const ANY: bool>(
                     for tri in &bvh.tris[first..last] {
                         c.ray_tri += 1;
                         let (q, t) = (&l.q, tri);
-                        if intersect_triangle(q.o, q.d, t[0], t[1], t[2], q.tmin, q.tmax)
-                            .is_some()
+                        if intersect_triangle(q.o, q.d, t[0], t[1], t[2], q.tmin, q.tmax).is_some()
                         {
                             hit_any = true;
                             break;
