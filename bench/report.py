@@ -150,7 +150,7 @@ def write_report(res, results_path: Path, md_path: Path):
     L.append("")
     L.append(f"* Machine: **{m['cpu_model']}**, {m['logical_cpus']} logical CPUs (used: {m['cpus_used']}), "
              f"Linux {m.get('kernel', '?')}; load average at start {m['load'][0]:.2f}, at end "
-             f"{m.get('load_end', [float('nan')])[0]:.2f} (4 other engineers were building and benchmarking on it; the machine is shared: absolute times drift, "
+             f"{m.get('load_end', [float('nan')])[0]:.2f} (the machine is shared: absolute times drift, "
              "ratios from the same run hold).")
     binary = "" if m.get("raysift_binary", "").endswith("target/release/raysift") and "/tmp/" not in m.get(
         "raysift_binary", "") else f" (raysift binary {m.get('raysift_binary')})"
