@@ -568,7 +568,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
     } else {
         let what = if a.occlusion { "occluded" } else { "hit" };
         eprintln!(
-            "{}: {} rays, {hits} {what}, prepare {prepare_ms:.1} ms, trace {trace_ms:.1} ms ({mrays:.2} Mrays/s, {} threads)",
+            "{}: {} rays, {hits} {what}, prepare {prepare_ms:.1} ms, trace {trace_ms:.1} ms ({mrays:.3} Mrays/s, {} threads)",
             tracer.name(),
             rays.len(),
             rayon::current_num_threads()
