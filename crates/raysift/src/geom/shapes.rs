@@ -56,6 +56,7 @@ impl Sphere {
     /// True when the ray's segment `[tmin, tmax]` passes within the sphere (conservative for
     /// unnormalised directions).
     #[inline]
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(dd > 0)` also rejects NaN directions
     pub fn hit_by_ray(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         let dd = dir.length_squared();
         if !(dd > 0.0) {

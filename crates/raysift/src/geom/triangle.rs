@@ -30,6 +30,8 @@ pub struct TriHit {
 }
 
 /// Intersects the ray `origin + t·dir` with triangle `(v0, v1, v2)`, accepting `tmin <= t <= tmax`.
+// Negated comparisons on purpose: each `!(x >= a && ...)` rejects NaN too.
+#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_range_contains)]
 #[inline(always)]
 pub fn intersect_triangle(
     origin: Vec3,
@@ -69,6 +71,7 @@ pub fn intersect_triangle(
 /// True when the triangle has (nearly) zero area: `|e1 × e2|² <= 1e-14 · |e1|²·|e2|²`, i.e. the
 /// sine of its angle at `v0` is below about 1e-7, the f32 resolution (this includes coincident
 /// vertices and collinear ones up to rounding), or when a coordinate is not finite.
+#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)] // `!(n2 > ..)` also catches NaN
 pub fn is_degenerate(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
     let e1 = v1 - v0;
     let e2 = v2 - v0;

@@ -150,8 +150,8 @@ impl Animation {
                     let c = (tri[0] + tri[1] + tri[2]) / 3.0;
                     let q = Quat::from_axis_angle(self.axis[i], 3.0 * t);
                     let c2 = c + self.velocity[i] * t;
-                    for k in 0..3 {
-                        m.positions[3 * i + k] = c2 + q * (tri[k] - c);
+                    for (k, &corner) in tri.iter().enumerate() {
+                        m.positions[3 * i + k] = c2 + q * (corner - c);
                     }
                 }
             }

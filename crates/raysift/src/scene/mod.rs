@@ -287,6 +287,17 @@ fn transform_is_finite(t: &Affine3A) -> bool {
         && t.translation.is_finite()
 }
 
+/// The embedded default scene: the Stanford Bunny at Stanford's decimation level 2 (16,301
+/// triangles; see `assets/README.md` for the credit), used by `raysift render` without a scene.
+pub fn default_scene() -> Result<Scene> {
+    const BYTES: &[u8] = include_bytes!("../../../../assets/bunny.ply.gz");
+    let name = "default (Stanford bunny, 16K triangles)";
+    let mut ply = Vec::new();
+    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(BYTES), &mut ply)
+        .map_err(|e| Error::parse(name, "gzip stream", e.to_string()))?;
+    Scene::from_meshes(name, io::ply::parse(&ply, name)?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -342,15 +353,4 @@ mod tests {
         assert!(s.is_empty());
         assert!(s.bounds().is_empty());
     }
-}
-
-/// The embedded default scene: the Stanford Bunny at Stanford's decimation level 2 (16,301
-/// triangles; see `assets/README.md` for the credit), used by `raysift render` without a scene.
-pub fn default_scene() -> Result<Scene> {
-    const BYTES: &[u8] = include_bytes!("../../../../assets/bunny.ply.gz");
-    let name = "default (Stanford bunny, 16K triangles)";
-    let mut ply = Vec::new();
-    std::io::Read::read_to_end(&mut flate2::read::GzDecoder::new(BYTES), &mut ply)
-        .map_err(|e| Error::parse(name, "gzip stream", e.to_string()))?;
-    Scene::from_meshes(name, io::ply::parse(&ply, name)?)
 }
