@@ -124,17 +124,31 @@ pub fn bounce_rays(
         if !hits.is_hit(i) {
             continue;
         }
-        let (p, n) = hit_frame(scene, rays, hits, i);
-        let d = cosine_direction(n, rng.gen(), rng.gen());
-        out.push(Ray {
-            origin: p + n * eps,
-            dir: d,
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-        });
+        out.push(bounce_ray(scene, rays, hits, i, eps, rng.gen(), rng.gen()));
         from.push(i as u32);
     }
     (out, from)
+}
+
+/// The cosine-weighted diffuse bounce of hit `i` (on the viewer's side of the surface, its origin
+/// pushed off by `eps`), from two uniform numbers in [0,1).
+#[inline]
+pub fn bounce_ray(
+    scene: &Scene,
+    rays: &RayBatch,
+    hits: &HitBatch,
+    i: usize,
+    eps: f32,
+    a: f32,
+    b: f32,
+) -> Ray {
+    let (p, n) = hit_frame(scene, rays, hits, i);
+    Ray {
+        origin: p + n * eps,
+        dir: cosine_direction(n, a, b),
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    }
 }
 
 /// Cosine-weighted direction about unit normal `n` from two uniform numbers in [0,1).

@@ -143,14 +143,15 @@ pub fn path_trace(
                 if depth == cfg.bounces {
                     continue;
                 }
-                let (p, nrm) = generate::hit_frame(scene, &rays, &hits, i);
-                let d = generate::cosine_direction(nrm, rng.gen(), rng.gen());
-                next.push(Ray {
-                    origin: p + nrm * eps,
-                    dir: d,
-                    tmin: 0.0,
-                    tmax: f32::INFINITY,
-                });
+                next.push(generate::bounce_ray(
+                    scene,
+                    &rays,
+                    &hits,
+                    i,
+                    eps,
+                    rng.gen(),
+                    rng.gen(),
+                ));
                 next_pixel.push(px as u32);
                 next_tp.push(throughput[i] * cfg.albedo);
             }
