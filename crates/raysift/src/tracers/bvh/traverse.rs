@@ -44,6 +44,32 @@ struct Entry {
     t: f32,
 }
 
+/// Descends into an interior node whose children `mask` (bit k: child k entered, at `e[k]`)
+/// says were entered: returns the nearer child (ties to the left) and pushes the farther one,
+/// if both were entered, onto `stack` at `*sp`. Shared by every walk so the order is one rule.
+#[inline(always)]
+fn descend(pair: &NodePair, mask: u32, e: [f32; 2], stack: &mut [Entry], sp: &mut usize) -> Entry {
+    let near = if mask == 3 {
+        (e[1] < e[0]) as usize
+    } else {
+        (mask >> 1) as usize
+    };
+    if mask == 3 {
+        let far = near ^ 1;
+        stack[*sp] = Entry {
+            offset: pair.offset[far],
+            count: pair.count[far] as u32,
+            t: e[far],
+        };
+        *sp += 1;
+    }
+    Entry {
+        offset: pair.offset[near],
+        count: pair.count[near] as u32,
+        t: e[near],
+    }
+}
+
 /// One ray's query.
 struct Query {
     o: Vec3,
@@ -145,25 +171,7 @@ fn closest_ray<const NX: bool, const NY: bool, const NZ: bool>(
             let (mask, e) = q.ray.entry2::<NX, NY, NZ>(&pair.boxes, tmin, best_t);
             if mask != 0 {
                 // One child entered: it is the near one; both: the nearer (ties to the left).
-                let near = if mask == 3 {
-                    (e[1] < e[0]) as usize
-                } else {
-                    (mask >> 1) as usize
-                };
-                if mask == 3 {
-                    let far = near ^ 1;
-                    stack[sp] = Entry {
-                        offset: pair.offset[far],
-                        count: pair.count[far] as u32,
-                        t: e[far],
-                    };
-                    sp += 1;
-                }
-                n = Entry {
-                    offset: pair.offset[near],
-                    count: pair.count[near] as u32,
-                    t: e[near],
-                };
+                n = descend(pair, mask, e, &mut stack[..], &mut sp);
                 continue 'walk;
             }
         }
@@ -249,25 +257,7 @@ fn occluded_ray<const NX: bool, const NY: bool, const NZ: bool>(
             let (mask, e) = q.ray.entry2::<NX, NY, NZ>(&pair.boxes, tmin, tmax);
             // Near first still pays for any-hit: the near child is likelier to block.
             if mask != 0 {
-                let near = if mask == 3 {
-                    (e[1] < e[0]) as usize
-                } else {
-                    (mask >> 1) as usize
-                };
-                if mask == 3 {
-                    let far = near ^ 1;
-                    stack[sp] = Entry {
-                        offset: pair.offset[far],
-                        count: pair.count[far] as u32,
-                        t: e[far],
-                    };
-                    sp += 1;
-                }
-                n = Entry {
-                    offset: pair.offset[near],
-                    count: pair.count[near] as u32,
-                    t: e[near],
-                };
+                n = descend(pair, mask, e, &mut stack[..], &mut sp);
                 continue;
             }
         }
@@ -431,25 +421,7 @@ fn interleaved_chunk<const ANY: bool>(
                 let pair = &pairs[n.offset as usize];
                 let (mask, e) = l.q.ray.entry2_masked(&pair.boxes, l.q.tmin, l.best_t);
                 if mask != 0 {
-                    let near = if mask == 3 {
-                        (e[1] < e[0]) as usize
-                    } else {
-                        (mask >> 1) as usize
-                    };
-                    if mask == 3 {
-                        let far = near ^ 1;
-                        stack[l.sp] = Entry {
-                            offset: pair.offset[far],
-                            count: pair.count[far] as u32,
-                            t: e[far],
-                        };
-                        l.sp += 1;
-                    }
-                    l.n = Entry {
-                        offset: pair.offset[near],
-                        count: pair.count[near] as u32,
-                        t: e[near],
-                    };
+                    l.n = descend(pair, mask, e, &mut stack[..], &mut l.sp);
                     prefetch_entry(bvh, l.n);
                     continue;
                 }
