@@ -366,7 +366,8 @@ def prepare_scene(ctx, spec):
     run_proc([rs, "rays", "random", spec, "--count", mode["random"], "--seed", "11", "--out", ra])
     wl["random"] = dict(rays=str(ra), occlusion=False, packet=1)
     for k, w in wl.items():
-        w["count"] = int(np.load(w["rays"], mmap_mode="r").shape[0])
+        # rows, or pixels of image-shaped camera rays (H, W, 8)
+        w["count"] = int(np.prod(np.load(w["rays"], mmap_mode="r").shape[:-1]))
     sc["workloads"] = wl
     sc["camera"]["hit_fraction"] = hit_fraction(cam_hits)
     sc["setup_s"] = time.perf_counter() - t0
@@ -473,6 +474,7 @@ def agree(ref_path, got_path, occlusion, rays_path, scene_size, tris_path):
         return dict(ok=False, n=int(a.size), error=f"shape {b.shape} vs Embree's {a.shape}")
     n = a.size
     rays = np.load(rays_path, mmap_mode="r")
+    rays = rays.reshape(-1, rays.shape[-1])  # camera rays are image-shaped (H, W, 8)
     ha, hb = a["prim"] != MISS, b["prim"] != MISS
     miss_diff = np.nonzero(ha != hb)[0]
     both = np.nonzero(ha & hb)[0]

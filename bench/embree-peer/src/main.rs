@@ -497,12 +497,14 @@ fn main() {
     let indices: Vec<u32> = (0..3 * ntri as u32).chain([0, 0, 0, 0]).collect();
 
     let ra = npy::read(&args.rays).unwrap_or_else(|e| die(e));
-    if ra.shape.len() != 2 || !(ra.shape[1] == 6 || ra.shape[1] == 8) {
-        die(format!("{}: expected float32 (N,6) or (N,8), got shape {:?}", args.rays, ra.shape));
+    // (N, 6|8), or image-shaped (H, W, 6|8) camera rays as `raysift rays camera` writes them.
+    let cols = ra.shape.last().copied().unwrap_or(0);
+    if !(ra.shape.len() == 2 || ra.shape.len() == 3) || !(cols == 6 || cols == 8) {
+        die(format!("{}: expected float32 (N,6|8) or (H,W,6|8), got shape {:?}", args.rays, ra.shape));
     }
     let rays = Rays {
-        n: ra.shape[0],
-        cols: ra.shape[1],
+        n: ra.shape[..ra.shape.len() - 1].iter().product(),
+        cols,
         data: ra.f32s().unwrap_or_else(|e| die(format!("{}: {e}", args.rays))),
     };
     drop(ra);

@@ -126,7 +126,7 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 // Held between calls: six f32 lists of T.
                 assert_eq!(c.prepare, 24 * t, "prepare {mode}");
                 // Per call: K triangle index lists, one ray index list and 32-byte ray records
-                // (36 bytes per ray), and for packets 44
+                // (36 bytes per ray), and for packets 68
                 // bytes per 8×8 tile or per 64 shadow rays (here R/64 either way), plus the
                 // shadow rays' 8-byte Morton order.
                 let cones = if mode == "packet" || mode == "shadow" {
@@ -135,7 +135,7 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                     0
                 };
                 let order = if mode == "shadow" { 8 * r } else { 0 };
-                let want = 4 * t * tasks + 36 * r + 44 * cones + order;
+                let want = 4 * t * tasks + 36 * r + 68 * cones + order;
                 assert_eq!(c.intersect.0, want, "intersect {mode} tasks {tasks}");
                 assert_eq!(c.occluded.0, want, "occluded {mode} tasks {tasks}");
                 assert!(c.intersect.1 <= want && c.occluded.1 <= want);

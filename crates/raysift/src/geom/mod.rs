@@ -14,7 +14,7 @@ pub mod triangle4;
 pub mod tribox;
 
 pub use aabb::Aabb;
-pub use conebox::cone_box_overlap;
+pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};
 pub use slab::{BoxPair, SlabRay};

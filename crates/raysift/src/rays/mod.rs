@@ -40,6 +40,43 @@ pub enum RayLayout {
     },
 }
 
+impl RayBatch {
+    /// Recovers a layout hint from the rays themselves (for batches read from files, which carry
+    /// no hint): `image` = `(width, height)` when the batch came as an image-shaped array.
+    ///
+    /// - `Pinhole`: an image-shaped batch whose rays all start at one point with `tmin >= 0`.
+    /// - `ToPoint`: every ray is a segment (`0 <= tmin`, `tmax <= 1`) whose end `o + d` is one
+    ///   point up to f32 rounding (relative `2^-16`), as [`generate::shadow_rays`] makes them.
+    ///
+    /// A hint only: tracers validate what they exploit (DACRT's cones check every ray), so a
+    /// wrong guess can cost speed but never change an answer. One pass over the batch.
+    pub fn detect_layout(&self, image: Option<(u32, u32)>) -> RayLayout {
+        let n = self.len();
+        if n == 0 {
+            return RayLayout::Unknown;
+        }
+        if let Some((width, height)) = image {
+            let eye = self.origin(0);
+            let shared = (0..n).all(|i| self.origin(i) == eye && self.tmin[i] >= 0.0);
+            if shared && width as usize * height as usize == n {
+                return RayLayout::Pinhole { eye, width, height };
+            }
+        }
+        let target = self.origin(0) + self.dir(0);
+        let ends_at_target = |i: usize| {
+            let (o, d) = (self.origin(i), self.dir(i));
+            let scale = o.abs().max(d.abs()).max(target.abs()).max_element();
+            self.tmin[i] >= 0.0
+                && self.tmax[i] <= 1.0
+                && ((o + d) - target).abs().max_element() <= scale * (1.0 / 65536.0)
+        };
+        if target.is_finite() && (0..n).all(ends_at_target) {
+            return RayLayout::ToPoint { target };
+        }
+        RayLayout::Unknown
+    }
+}
+
 /// One ray (for convenience outside hot loops).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {

@@ -2,12 +2,16 @@
 //!
 //! - `rays.npy`: float32, shape `(N, 6)` `[ox, oy, oz, dx, dy, dz]` (then `tmin = 0`, `tmax = +inf`)
 //!   or `(N, 8)` `[..., tmin, tmax]`, C order, either byte order. Origins and directions must be
-//!   finite, directions non-zero, `tmin` not NaN.
+//!   finite, directions non-zero, `tmin` not NaN. Camera rays may also be image-shaped,
+//!   `(H, W, 6)` or `(H, W, 8)` (pixel `(i, j)` at row `j`, column `i`); [`write_rays`] writes
+//!   pinhole batches that way so the image size survives the file. [`read_rays`] recovers the
+//!   layout hint ([`RayBatch::detect_layout`]): pinhole for image-shaped rays from one point,
+//!   to-a-point for shadow segments.
 //! - `hits.npy`: a structured array of N records `t <f4` (+inf on miss), `prim <u4`
 //!   (4294967295 on miss), `u <f4`, `v <f4`.
 //! - occlusion: `uint8` array of N (1 = occluded).
 
-use super::{HitBatch, Ray, RayBatch};
+use super::{HitBatch, Ray, RayBatch, RayLayout};
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use npyz::WriterBuilder;
@@ -58,13 +62,25 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
             format!("dtype is {}, expected float32 ('<f4')", npy.dtype().descr()),
         ));
     }
-    if shape.len() != 2 || !(shape[1] == 6 || shape[1] == 8) {
+    let cols = shape.last().copied().unwrap_or(0);
+    if !(shape.len() == 2 || shape.len() == 3) || !(cols == 6 || cols == 8) {
         return Err(Error::parse(
             &name,
             "header",
-            format!("shape is {shape:?}, expected (N, 6) or (N, 8)"),
+            format!("shape is {shape:?}, expected (N, 6), (N, 8), (H, W, 6) or (H, W, 8)"),
         ));
     }
+    let image = match shape[..] {
+        [h, w, _] if h <= u32::MAX as u64 && w <= u32::MAX as u64 => Some((w as u32, h as u32)),
+        [_, _, _] => {
+            return Err(Error::parse(
+                &name,
+                "header",
+                format!("image shape {shape:?} too large"),
+            ))
+        }
+        _ => None,
+    };
     if npy.order() != npyz::Order::C {
         return Err(Error::parse(
             &name,
@@ -72,7 +88,11 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
             "Fortran-ordered array; save it in C order (numpy.ascontiguousarray)",
         ));
     }
-    let (n, w) = (shape[0] as usize, shape[1] as usize);
+    let n = shape[..shape.len() - 1]
+        .iter()
+        .try_fold(1usize, |a, &x| a.checked_mul(x as usize))
+        .ok_or_else(|| Error::parse(&name, "header", format!("shape {shape:?} too large")))?;
+    let w = cols as usize;
     let data: Vec<f32> = npy.into_vec().map_err(|e| {
         Error::parse(
             &name,
@@ -88,6 +108,11 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
         ));
     }
     let mut rays = RayBatch::with_capacity(n);
+    // Where a bad value is: the row, or the pixel of an image-shaped array.
+    let place = |i: usize| match image {
+        Some((iw, _)) => format!("pixel [{}, {}]", i / iw as usize, i % iw as usize),
+        None => format!("row {i}"),
+    };
     for (i, row) in data.chunks_exact(w).enumerate() {
         let (tmin, tmax) = if w == 8 {
             (row[6], row[7])
@@ -97,17 +122,17 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
         if row[..6].iter().any(|x| !x.is_finite()) {
             return Err(Error::parse(
                 &name,
-                format!("row {i}"),
+                place(i),
                 format!("non-finite origin or direction {:?}", &row[..6]),
             ));
         }
         if row[3] == 0.0 && row[4] == 0.0 && row[5] == 0.0 {
-            return Err(Error::parse(&name, format!("row {i}"), "zero direction"));
+            return Err(Error::parse(&name, place(i), "zero direction"));
         }
         if tmin.is_nan() || tmax.is_nan() {
             return Err(Error::parse(
                 &name,
-                format!("row {i}"),
+                place(i),
                 "tmin or tmax is NaN",
             ));
         }
@@ -118,16 +143,24 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
             tmax,
         });
     }
+    rays.layout = rays.detect_layout(image);
     Ok(rays)
 }
 
-/// Writes rays as float32 `(N, 8)`.
+/// Writes rays as float32 `(N, 8)`, or `(H, W, 8)` for pinhole batches (so readers recover the
+/// image size).
 pub fn write_rays(path: impl AsRef<Path>, rays: &RayBatch) -> Result<()> {
     let n = rays.len();
+    let shape = match rays.layout {
+        RayLayout::Pinhole { width, height, .. } if width as usize * height as usize == n => {
+            vec![height as u64, width as u64, 8]
+        }
+        _ => vec![n as u64, 8],
+    };
     write_atomic(path.as_ref(), |w| {
         let mut out = npyz::WriteOptions::<f32>::new()
             .default_dtype()
-            .shape(&[n as u64, 8])
+            .shape(&shape)
             .writer(w)
             .begin_nd()?;
         for i in 0..n {
@@ -272,6 +305,56 @@ mod tests {
         let p = dir.path().join("e.npy");
         write_rays(&p, &RayBatch::default()).unwrap();
         assert_eq!(read_rays(&p).unwrap().len(), 0);
+    }
+
+    #[test]
+    fn layouts_survive_the_file() {
+        use crate::rays::generate::shadow_rays;
+        use crate::rays::Camera;
+        let dir = tempfile::tempdir().unwrap();
+        let cam = Camera {
+            eye: Vec3::new(0.5, 1.0, 4.0),
+            look: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 40.0,
+        };
+        let rays = cam.rays(24, 16);
+        let p = dir.path().join("cam.npy");
+        write_rays(&p, &rays).unwrap();
+        let back = read_rays(&p).unwrap();
+        assert_eq!(back.layout, rays.layout);
+        assert_eq!(back.dx, rays.dx);
+        // Same rays as a flat (N, 8) array: no image size, no pinhole claim.
+        let mut flat = rays.clone();
+        flat.layout = RayLayout::Unknown;
+        assert_eq!(flat.detect_layout(None), RayLayout::Unknown);
+        // One ray from elsewhere: not a pinhole batch.
+        let mut moved = rays.clone();
+        moved.ox[100] += 1e-3;
+        assert_eq!(moved.detect_layout(Some((24, 16))), RayLayout::Unknown);
+
+        // Shadow rays towards a light, written flat, come back as rays to that point.
+        let scene = crate::scene::procedural::open("sphere:500").unwrap();
+        let mut hits = HitBatch::new(rays.len());
+        let mut tr = crate::tracers::create("naive", &[]).unwrap();
+        tr.prepare(std::sync::Arc::new(scene.clone())).unwrap();
+        tr.intersect(&rays, &mut hits);
+        let light = Vec3::new(3.0, 5.0, 2.0);
+        let (sr, _) = shadow_rays(&scene, &rays, &hits, light);
+        assert!(sr.len() > 10);
+        let p = dir.path().join("shadow.npy");
+        write_rays(&p, &sr).unwrap();
+        match read_rays(&p).unwrap().layout {
+            RayLayout::ToPoint { target } => assert!((target - light).length() < 1e-5),
+            l => panic!("shadow rays read back as {l:?}"),
+        }
+        // One segment ending elsewhere, or one unbounded ray: no common end point.
+        let mut off = sr.clone();
+        off.dx[3] += 0.01;
+        assert_eq!(off.detect_layout(None), RayLayout::Unknown);
+        let mut long = sr.clone();
+        long.tmax[5] = 2.0;
+        assert_eq!(long.detect_layout(None), RayLayout::Unknown);
     }
 
     #[test]

@@ -16,7 +16,11 @@
 //!   of the paper's four reshuffled lists), so the split-plane test of a large stream reads 8 bytes
 //!   per triangle. Streams below `sat_threshold` also run the 9 edge axes of the Akenine-Möller
 //!   test ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped
-//!   as in the paper).
+//!   as in the paper). The paper's threshold is 100; ours defaults to 0 (plane test only), by
+//!   measurement: the edge-axis test costs about six four-wide ray/triangle tests per triangle
+//!   and saves only the tests of the rays that reach the triangles it drops; at 1024² camera
+//!   rays, 100 made the frame 1.3× slower on the 871K dragon and 1.05–1.2× on Sponza and the
+//!   bunny (BENCHMARKS.md).
 //! - **§3.6, Fig. 5** (split choice, `Task::choose_split`): longest axis; for streams of at least
 //!   `split_sample_threshold` triangles the mean of the clamped span midpoints of every
 //!   `split_sample_stride`-th triangle, else the spatial median. Guard: when every triangle
@@ -26,7 +30,7 @@
 //!   from the light to the origins (cut at their distance, plus a small ball around the light
 //!   because the rays end a few ulps off it), bounded by a cone (axis, f64 cos², 64 termination
 //!   bits); exact cone/box test
-//!   ([`crate::geom::cone_box_overlap`]: axis ray, then the silhouette edges from a 64-entry
+//!   ([`crate::geom::ConeQuery`]: bounding-sphere accept/reject, axis ray, then the silhouette edges from a 64-entry
 //!   table); below `c_limit` cones (or `p_limit` triangles) the non-terminated rays of the cones
 //!   are flushed into the ray list (by default only those entering the cell: `flush_filter`)
 //!   and Algorithm 1 continues; terminated rays set their cone's bit, and cones with every
@@ -53,20 +57,20 @@
 //! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
 //! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
 //!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`) and, in packet
-//!   mode, `44` bytes per cone (40 for the cone, 4 for its index), i.e. `44·⌈W/8⌉·(tile rows)`
-//!   for camera rays (`= 0.6875·R` when W and H are multiples of 8 and the bands are whole tile
-//!   rows) and, for shadow rays, `44·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
-//!   rays that groups them into compact packets).
+//!   mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
+//!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
+//!   the bands are whole tile rows) and, for shadow rays, `68·⌈R_task/64⌉` per task plus `8·R`
+//!   (the Morton order of the rays that groups them into compact packets).
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
-//! `b = 36` (ray and random modes), `36.6875` (camera packets, full tiles), `44.6875` (shadow
+//! `b = 36` (ray and random modes), `37.0625` (camera packets, full tiles), `45.0625` (shadow
 //! packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
 //! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
 //! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
 
 use crate::error::Result;
 use crate::geom::{
-    cone_box_overlap, intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, Tri4,
+    intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, ConeQuery, Tri4,
 };
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
@@ -102,8 +106,8 @@ pub struct Config {
     /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
     /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
     pub c_limit: usize,
-    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100).
-    /// Default 100.
+    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100;
+    /// measured slower here, see the module doc). Default 0 (never).
     pub sat_threshold: usize,
     /// Sampled split position for streams of at least this many triangles, spatial median
     /// below (paper: 10 000). Default 10000.
@@ -134,7 +138,7 @@ impl Default for Config {
             r_limit: 20,
             p_limit: 16,
             c_limit: 16,
-            sat_threshold: 100,
+            sat_threshold: 0,
             split_sample_threshold: 10_000,
             split_sample_stride: 50,
             mode: Mode::Auto,
@@ -248,17 +252,18 @@ impl Order {
     }
 }
 
-/// One conic packet: 40 bytes.
-#[derive(Clone, Copy, Debug, Default)]
+/// Bytes per conic packet: the cone and its index in the cone list.
+const CONE_BYTES: usize = std::mem::size_of::<PackedCone>() + 4;
+const _: () = assert!(CONE_BYTES == 68, "the memory formula in the module doc says 68");
+
+/// One conic packet: 64 bytes.
+#[derive(Clone, Copy, Debug)]
 struct PackedCone {
-    axis: Vec3,
-    /// Boxes this close to the apex count as hit (shadow cones; 0 for camera cones).
-    near: f32,
-    /// The packet's rays lie within this distance of the apex (shadow cones: their origins;
-    /// +inf for camera cones).
-    reach: f32,
-    /// cos² of the half-angle, in f64 (f32 cannot resolve the angular margin near 1).
-    cos2: f64,
+    /// The cone, prepared for box tests (f64 unit axis, cos² of the half-angle, cos and sin:
+    /// f32 cannot resolve the angular margin near 1). Near radius: boxes this close to the apex
+    /// count as hit (shadow cones; 0 for camera cones). Reach: the packet's rays lie within this
+    /// distance of the apex (shadow cones: their origins; +inf for camera cones).
+    q: ConeQuery,
     /// Termination bits, one per ray of the packet.
     done: u64,
 }
@@ -751,7 +756,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut k = self.cterm;
         for p in self.cterm..cend {
             let c = &self.cones[self.cone_idx[p] as usize];
-            if cone_box_overlap(self.apex, c.axis, c.cos2, c.near, c.reach, b) {
+            if c.q.overlaps(self.apex, b) {
                 self.cone_idx.swap(k, p);
                 k += 1;
             }
@@ -901,10 +906,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
         let cos = (half as f64).cos();
         Some(PackedCone {
-            axis: cone.axis,
-            near,
-            reach: cut,
-            cos2: cos * cos,
+            q: ConeQuery::new(cone.axis, cos * cos, near, cut),
             done: 0,
         })
     }
@@ -1053,7 +1055,13 @@ impl Dacrt {
             view: plan.view,
             packets,
             apex,
-            cones: vec![PackedCone::default(); ncones],
+            cones: vec![
+                PackedCone {
+                    q: ConeQuery::default(),
+                    done: 0
+                };
+                ncones
+            ],
             cone_idx: Vec::with_capacity(ncones),
             perm: match packets {
                 Packets::Runs { .. } => morton_order(rays, range.clone(), &scene.bounds()),
@@ -1063,7 +1071,7 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes = (4 * ntri + 36 * len + 44 * ncones + 8 * task.perm.len()) as u64;
+        task.st.peak_bytes = (4 * ntri + 36 * len + CONE_BYTES * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
@@ -1228,10 +1236,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn config_defaults_are_the_papers() {
+    fn config_defaults_are_the_papers_except_sat() {
         let c: Config = crate::tracers::config_from_opts("dacrt", &[]).unwrap();
         assert_eq!(c, Config::default());
-        assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 100));
+        assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 0));
         assert_eq!(
             (c.split_sample_threshold, c.split_sample_stride),
             (10_000, 50)
