@@ -130,11 +130,7 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
             return Err(Error::parse(&name, place(i), "zero direction"));
         }
         if tmin.is_nan() || tmax.is_nan() {
-            return Err(Error::parse(
-                &name,
-                place(i),
-                "tmin or tmax is NaN",
-            ));
+            return Err(Error::parse(&name, place(i), "tmin or tmax is NaN"));
         }
         rays.push(Ray {
             origin: glam::Vec3::new(row[0], row[1], row[2]),

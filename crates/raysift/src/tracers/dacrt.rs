@@ -254,7 +254,10 @@ impl Order {
 
 /// Bytes per conic packet: the cone and its index in the cone list.
 const CONE_BYTES: usize = std::mem::size_of::<PackedCone>() + 4;
-const _: () = assert!(CONE_BYTES == 68, "the memory formula in the module doc says 68");
+const _: () = assert!(
+    CONE_BYTES == 68,
+    "the memory formula in the module doc says 68"
+);
 
 /// One conic packet: 64 bytes.
 #[derive(Clone, Copy, Debug)]
@@ -1071,7 +1074,8 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes = (4 * ntri + 36 * len + CONE_BYTES * ncones + 8 * task.perm.len()) as u64;
+        task.st.peak_bytes =
+            (4 * ntri + 36 * len + CONE_BYTES * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
