@@ -123,7 +123,7 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                     if mode == "shadow" { "packet" } else { mode },
                     tasks,
                 );
-                // Held between calls: six f32 lists of T.
+                // Held between calls: per axis, a [min, max] pair per triangle.
                 assert_eq!(c.prepare, 24 * t, "prepare {mode}");
                 // Per call: K triangle index lists, one ray index list and 32-byte ray records
                 // (36 bytes per ray), and for packets 68

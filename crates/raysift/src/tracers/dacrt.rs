@@ -12,7 +12,8 @@
 //!   `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is final;
 //!   see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch of the
 //!   ray already visited).
-//! - **§3.5, Fig. 4** (triangle streaming): per-axis min/max lists (six f32 arrays, an SoA version
+//! - **§3.5, Fig. 4** (triangle streaming): per-axis min/max lists (three arrays of `[min, max]`
+//!   pairs, an SoA version
 //!   of the paper's four reshuffled lists), so the split-plane test of a large stream reads 8 bytes
 //!   per triangle. Streams below `sat_threshold` also run the 9 edge axes of the Akenine-Möller
 //!   test ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped
@@ -54,7 +55,7 @@
 //! is conservative (the z-buffer cut and box exits are widened by the shared rounding slack).
 //!
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
-//! - held between calls ([`Tracer::bytes`]): `24·T` (the six min/max lists);
+//! - held between calls ([`Tracer::bytes`]): `24·T` (per axis, each triangle's `[min, max]`);
 //! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
 //!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`) and, in packet
 //!   mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
@@ -155,11 +156,12 @@ impl Default for Config {
 pub struct Dacrt {
     cfg: Config,
     scene: Option<Arc<Scene>>,
-    /// `lo[a][t]`, `hi[a][t]`: triangle `t`'s bounds on axis `a` (§3.5's min/max lists).
+    /// `span[a][t] = [lo, hi]`: triangle `t`'s bounds on axis `a` (§3.5's min/max lists, each
+    /// pair side by side: the split-plane test gathers both through the triangle index, and one
+    /// cache line instead of two measured faster on the 871K dragon).
     /// Degenerate triangles get `lo = +inf, hi = -inf` so the first split drops them (exact:
     /// the shared triangle test never hits them).
-    lo: [Vec<f32>; 3],
-    hi: [Vec<f32>; 3],
+    span: [Vec<[f32; 2]>; 3],
 }
 
 impl Dacrt {
@@ -168,8 +170,7 @@ impl Dacrt {
         Self {
             cfg,
             scene: None,
-            lo: Default::default(),
-            hi: Default::default(),
+            span: Default::default(),
         }
     }
 
@@ -379,8 +380,7 @@ struct Plan {
 struct Task<'a, const ANY: bool> {
     cfg: &'a Config,
     tris: &'a TriangleSoup,
-    lo: [&'a [f32]; 3],
-    hi: [&'a [f32]; 3],
+    span: [&'a [[f32; 2]]; 3],
     rays: &'a RayBatch,
     /// First ray of the share.
     base: usize,
@@ -473,7 +473,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         low: bool,
         child: &Aabb,
     ) -> (usize, usize) {
-        let (lo, hi) = (self.lo[axis], self.hi[axis]);
+        let span = self.span[axis];
         let sat = nt < self.cfg.sat_threshold;
         let mut k = 0;
         let mut other = 0;
@@ -483,7 +483,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let idx = &mut self.tri_idx[..nt];
             for p in 0..nt {
                 let t = idx[p] as usize;
-                let (l, h) = (lo[t], hi[t]);
+                let [l, h] = span[t];
                 let (inside, opposite) = if low {
                     (l <= split, h >= split)
                 } else {
@@ -499,7 +499,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut sat_tests = 0u64;
         for p in 0..nt {
             let t = self.tri_idx[p] as usize;
-            let (l, h) = (lo[t], hi[t]);
+            let [l, h] = span[t];
             let (inside, opposite) = if low {
                 (l <= split, h >= split)
             } else {
@@ -528,12 +528,13 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut s = median;
         let stride = self.cfg.split_sample_stride.max(1);
         if nt >= self.cfg.split_sample_threshold {
-            let (lo, hi) = (self.lo[axis], self.hi[axis]);
+            let span = self.span[axis];
             let (mut sum, mut n) = (0.0f64, 0u32);
             for p in (0..nt).step_by(stride) {
                 let t = self.tri_idx[p] as usize;
-                if lo[t] <= hi[t] {
-                    sum += 0.5 * (lo[t].clamp(mn, mx) as f64 + hi[t].clamp(mn, mx) as f64);
+                let [l, h] = span[t];
+                if l <= h {
+                    sum += 0.5 * (l.clamp(mn, mx) as f64 + h.clamp(mn, mx) as f64);
                     n += 1;
                 }
             }
@@ -1041,8 +1042,7 @@ impl Dacrt {
         let mut task = Task::<ANY> {
             cfg: &self.cfg,
             tris: scene.triangles(),
-            lo: [&self.lo[0], &self.lo[1], &self.lo[2]],
-            hi: [&self.hi[0], &self.hi[1], &self.hi[2]],
+            span: [&self.span[0], &self.span[1], &self.span[2]],
             rays,
             base: range.start,
             t,
@@ -1143,11 +1143,9 @@ impl Tracer for Dacrt {
     fn prepare(&mut self, scene: Arc<Scene>) -> Result<Stats> {
         let tris = scene.triangles();
         let n = tris.len();
-        for a in 0..3 {
-            for v in [&mut self.lo[a], &mut self.hi[a]] {
-                v.clear();
-                v.reserve_exact(n);
-            }
+        for v in &mut self.span {
+            v.clear();
+            v.reserve_exact(n);
         }
         for t in 0..n {
             let [a, b, c] = tris.get(t);
@@ -1158,8 +1156,7 @@ impl Tracer for Dacrt {
                 (a.min(b).min(c), a.max(b).max(c))
             };
             for k in 0..3 {
-                self.lo[k].push(mn[k]);
-                self.hi[k].push(mx[k]);
+                self.span[k].push([mn[k], mx[k]]);
             }
         }
         self.scene = Some(scene);
@@ -1227,11 +1224,7 @@ impl Tracer for Dacrt {
     }
 
     fn bytes(&self) -> usize {
-        self.lo
-            .iter()
-            .chain(self.hi.iter())
-            .map(|v| v.capacity() * 4)
-            .sum()
+        self.span.iter().map(|v| v.capacity() * 8).sum()
     }
 }
 
