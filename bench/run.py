@@ -51,7 +51,7 @@ GRAZE_MIN = 3  # ... or this many, whichever is larger (tiny workloads)
 SLOW_RUN_S = 6.0  # a contender whose warm-up run (prepare + trace) takes longer than this ...
 SLOW_ROUNDS = 3  # ... is measured in this many rounds only (flagged in the report), to keep the
 # full run within its time budget on 2 cores
-LONG_RUN_MS = 400  # a run at least this long is measured once per process (warm-up hardly matters)
+LONG_RUN_MS = 200  # a run at least this long is measured once per process (warm-up hardly matters)
 FRAME_HIT_TARGET = 0.7  # camera framing: narrow the view until this fraction of a preview hits
 PROCEDURAL = ["sphere:100000", "soup:100000", "sphere:1000000", "soup:1000000"]
 SCENE_EXTS = (".ply", ".obj", ".off", ".gltf", ".glb")
