@@ -13,7 +13,7 @@ pub mod triangle;
 pub mod triangle4;
 pub mod tribox;
 
-pub use aabb::Aabb;
+pub use aabb::{Aabb, PackedRay};
 pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
 pub use shapes::{Cone, Plane, Sphere};

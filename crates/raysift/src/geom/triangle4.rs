@@ -3,35 +3,39 @@
 //! Each lane runs exactly the f32 operations of the scalar test, in the same order (glam's
 //! `Vec3::cross` and `Vec3::dot` written out: `dot = (x·x' + y·y') + z·z'`, no fused
 //! multiply-add), so a lane's `t, u, v` and its accept decision are bit-identical to
-//! [`intersect_triangle`] on that triangle. The early returns of the scalar test become a lane
-//! mask; the arithmetic of rejected lanes (divisions by zero, NaNs) is computed and ignored.
-//! Written on `[f32; 4]` lane arrays so the compiler vectorises it on any target (SSE2 on
-//! x86-64), without `unsafe`.
+//! [`intersect_triangle`] on that triangle. The edges `v1 − v0`, `v2 − v0` are computed once
+//! when a lane is set (the same subtraction the scalar test does per call). The early returns of
+//! the scalar test become one lane mask from vector comparisons; the arithmetic of rejected lanes
+//! (divisions by zero, NaNs) is computed and ignored. Written on glam's `Vec4` (SSE2 on x86-64,
+//! scalar elsewhere), without `unsafe`: the earlier `[f32; 4]` form vectorised the arithmetic but
+//! compiled the seven accept tests to 28 scalar compares.
 //!
 //! [`intersect_triangle`]: super::intersect_triangle
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
-/// Four triangles, per axis and lane (`v0[axis][lane]`). Unused lanes may hold anything
+/// Four triangles, per axis and lane (`v0[axis]` holds the four lanes' first corners' `axis`
+/// coordinate), as the first corner and the two edges from it. Unused lanes may hold anything
 /// (callers mask them out of the result).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Tri4 {
     /// First corners.
-    pub v0: [[f32; 4]; 3],
-    /// Second corners.
-    pub v1: [[f32; 4]; 3],
-    /// Third corners.
-    pub v2: [[f32; 4]; 3],
+    pub v0: [Vec4; 3],
+    /// `v1 − v0`.
+    pub e1: [Vec4; 3],
+    /// `v2 − v0`.
+    pub e2: [Vec4; 3],
 }
 
 impl Tri4 {
     /// Sets lane `l` to the triangle `(a, b, c)`.
     #[inline(always)]
     pub fn set(&mut self, l: usize, a: Vec3, b: Vec3, c: Vec3) {
+        let (e1, e2) = (b - a, c - a);
         for k in 0..3 {
             self.v0[k][l] = a[k];
-            self.v1[k][l] = b[k];
-            self.v2[k][l] = c[k];
+            self.e1[k][l] = e1[k];
+            self.e2[k][l] = e2[k];
         }
     }
 }
@@ -50,85 +54,57 @@ pub struct Hit4 {
     pub v: [f32; 4],
 }
 
-type L = [f32; 4];
-
-#[inline(always)]
-fn sub(a: L, b: L) -> L {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
-}
-
-#[inline(always)]
-fn mul(a: L, b: L) -> L {
-    [a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]]
-}
-
-#[inline(always)]
-fn add(a: L, b: L) -> L {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
-}
-
-#[inline(always)]
-fn splat(x: f32) -> L {
-    [x; 4]
-}
+type L = Vec4;
 
 /// `(a.y·b.z − b.y·a.z, a.z·b.x − b.z·a.x, a.x·b.y − b.x·a.y)`: glam's `cross`, lane-wise.
 #[inline(always)]
 fn cross(a: [L; 3], b: [L; 3]) -> [L; 3] {
     [
-        sub(mul(a[1], b[2]), mul(b[1], a[2])),
-        sub(mul(a[2], b[0]), mul(b[2], a[0])),
-        sub(mul(a[0], b[1]), mul(b[0], a[1])),
+        a[1] * b[2] - b[1] * a[2],
+        a[2] * b[0] - b[2] * a[0],
+        a[0] * b[1] - b[0] * a[1],
     ]
 }
 
 /// `(a.x·b.x + a.y·b.y) + a.z·b.z`: glam's `dot`, lane-wise.
 #[inline(always)]
 fn dot(a: [L; 3], b: [L; 3]) -> L {
-    add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
-}
-
-#[inline(always)]
-fn mask(f: impl Fn(usize) -> bool) -> u32 {
-    (f(0) as u32) | (f(1) as u32) << 1 | (f(2) as u32) << 2 | (f(3) as u32) << 3
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// [`super::intersect_triangle`] of the ray `origin + t·dir` with the four triangles of `tri`.
 #[inline(always)]
 pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax: f32) -> Hit4 {
-    let o = [splat(origin.x), splat(origin.y), splat(origin.z)];
-    let d = [splat(dir.x), splat(dir.y), splat(dir.z)];
-    let v0 = tri.v0;
-    let e1 = [
-        sub(tri.v1[0], v0[0]),
-        sub(tri.v1[1], v0[1]),
-        sub(tri.v1[2], v0[2]),
-    ];
-    let e2 = [
-        sub(tri.v2[0], v0[0]),
-        sub(tri.v2[1], v0[1]),
-        sub(tri.v2[2], v0[2]),
-    ];
+    let d = [Vec4::splat(dir.x), Vec4::splat(dir.y), Vec4::splat(dir.z)];
+    let (v0, e1, e2) = (tri.v0, tri.e1, tri.e2);
     let p = cross(d, e2);
     let det = dot(e1, p);
-    let inv_det = [1.0 / det[0], 1.0 / det[1], 1.0 / det[2], 1.0 / det[3]];
-    let s = [sub(o[0], v0[0]), sub(o[1], v0[1]), sub(o[2], v0[2])];
-    let u = mul(dot(s, p), inv_det);
+    let inv_det = Vec4::ONE / det;
+    let s = [
+        Vec4::splat(origin.x) - v0[0],
+        Vec4::splat(origin.y) - v0[1],
+        Vec4::splat(origin.z) - v0[2],
+    ];
+    let u = dot(s, p) * inv_det;
     let q = cross(s, e1);
-    let v = mul(dot(d, q), inv_det);
-    let t = mul(dot(e2, q), inv_det);
-    let uv = add(u, v);
-    let mask = mask(|l| {
-        // The scalar test's conditions, in its words (NaN fails every one).
-        det[l] != 0.0
-            && u[l] >= 0.0
-            && u[l] <= 1.0
-            && v[l] >= 0.0
-            && uv[l] <= 1.0
-            && t[l] >= tmin
-            && t[l] <= tmax
-    });
-    Hit4 { mask, t, u, v }
+    let v = dot(d, q) * inv_det;
+    let t = dot(e2, q) * inv_det;
+    let (zero, one) = (Vec4::ZERO, Vec4::ONE);
+    // The scalar test's conditions in its order; a NaN fails every comparison but `!=` (as in
+    // the scalar test, whose NaN `det` then fails `u >= 0`).
+    let ok = det.cmpne(zero)
+        & u.cmpge(zero)
+        & u.cmple(one)
+        & v.cmpge(zero)
+        & (u + v).cmple(one)
+        & t.cmpge(Vec4::splat(tmin))
+        & t.cmple(Vec4::splat(tmax));
+    Hit4 {
+        mask: ok.bitmask(),
+        t: t.to_array(),
+        u: u.to_array(),
+        v: v.to_array(),
+    }
 }
 
 #[cfg(test)]

@@ -71,7 +71,8 @@
 
 use crate::error::Result;
 use crate::geom::{
-    intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, ConeQuery, Tri4,
+    intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, ConeQuery, PackedRay,
+    Tri4,
 };
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
@@ -273,18 +274,12 @@ struct PackedCone {
 }
 
 /// A ray as the filter loops see it (32 bytes, swapped together with its id in `ray_idx`): the
-/// slab test reads one record instead of eight scattered SoA entries through an index.
-/// `cut` is the end of the ray's useful interval: the widened z-buffer `t` for closest hits
-/// (updated by the leaves), `tmax` for any-hit. The direction itself (needed only by the
-/// leaves' exact triangle test) stays in the caller's batch.
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(32))]
-struct RayRec {
-    o: [f32; 3],
-    tmin: f32,
-    inv: [f32; 3],
-    cut: f32,
-}
+/// slab test ([`Aabb::hit_by_packed`], four lanes) reads one record instead of eight scattered
+/// SoA entries through an index. Its `tmax` lane is the cut-off, the end of the ray's useful
+/// interval: the widened z-buffer `t` for closest hits (updated by the leaves), `tmax` for
+/// any-hit. The direction itself (needed only by the leaves' exact triangle test) stays in the
+/// caller's batch.
+type RayRec = PackedRay;
 
 /// How the rays of a task map to packets.
 #[derive(Clone, Copy, Debug)]
@@ -429,12 +424,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let i = self.base + k;
         let inv = Vec3::ONE / self.rays.dir(i);
         self.ray_idx[slot] = k as u32;
-        self.recs[slot] = RayRec {
-            o: self.rays.origin(i).to_array(),
-            tmin: self.rays.tmin[i],
-            inv: inv.to_array(),
-            cut: self.best_cut(k),
-        };
+        self.recs[slot] = RayRec::new(
+            self.rays.origin(i),
+            inv,
+            self.rays.tmin[i],
+            self.best_cut(k),
+        );
     }
 
     /// In-place filter of `ray_idx[rterm..rend]` against `b` (full slab test, §3.2: no stacked
@@ -450,10 +445,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let ids = &mut self.ray_idx[..rend];
         let mut k = start;
         for p in start..rend {
-            let r = recs[p];
-            let keep = b
-                .ray_interval(Vec3::from(r.o), Vec3::from(r.inv), r.tmin, r.cut)
-                .is_some();
+            let keep = b.hit_by_packed(&recs[p]);
             recs.swap(k, p);
             ids.swap(k, p);
             k += keep as usize;
@@ -560,7 +552,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let (mut pos, mut neg) = (0, 0);
                 for p in (self.rterm..rend).step_by(step) {
                     // 1/d has d's sign (±0 gives ±inf); only the order depends on it.
-                    let dx = self.recs[p].inv[axis];
+                    let dx = self.recs[p].inv_tmax[axis];
                     pos += (dx > 0.0) as u32;
                     neg += (dx < 0.0) as u32;
                 }
@@ -613,8 +605,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         while p < rend {
             let r = self.ray_idx[p] as usize;
             let i = self.base + r;
-            let rec = self.recs[p];
-            let (o, d, tmin) = (Vec3::from(rec.o), self.rays.dir(i), rec.tmin);
+            let rec = self.recs[p].o_tmin;
+            let (o, d, tmin) = (rec.truncate(), self.rays.dir(i), rec.w);
             let done = if ANY {
                 let tmax = self.rays.tmax[i];
                 let mut hit = false;
@@ -649,7 +641,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 }
                 self.st.ray_tri += nt as u64;
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
-                self.recs[p].cut = widen(bt);
+                self.recs[p].inv_tmax.w = widen(bt);
                 self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
             };
             if done {
@@ -683,8 +675,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         while p < rend {
             let r = self.ray_idx[p] as usize;
             let i = self.base + r;
-            let rec = self.recs[p];
-            let (o, d, tmin) = (Vec3::from(rec.o), self.rays.dir(i), rec.tmin);
+            let rec = self.recs[p].o_tmin;
+            let (o, d, tmin) = (rec.truncate(), self.rays.dir(i), rec.w);
             let done = if ANY {
                 let tmax = self.rays.tmax[i];
                 let mut hit = false;
@@ -716,7 +708,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 }
                 tests += nt as u64;
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
-                self.recs[p].cut = widen(bt);
+                self.recs[p].inv_tmax.w = widen(bt);
                 self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
             };
             if done {
@@ -826,9 +818,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 self.load_ray(rend, k);
                 if filter {
                     self.st.ray_box += 1;
-                    let r = self.recs[rend];
-                    let (o, inv) = (Vec3::from(r.o), Vec3::from(r.inv));
-                    if cell.ray_interval(o, inv, r.tmin, r.cut).is_none() {
+                    if !cell.hit_by_packed(&self.recs[rend]) {
                         return;
                     }
                 }
