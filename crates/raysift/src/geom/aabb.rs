@@ -281,7 +281,11 @@ mod tests {
             let mut o = Vec3::new(r(2.0), r(2.0), r(2.0));
             let plane = (n / 4) % 3;
             if n % 4 == 0 {
-                o[plane] = if n % 8 == 0 { b.min[plane] } else { b.max[plane] };
+                o[plane] = if n % 8 == 0 {
+                    b.min[plane]
+                } else {
+                    b.max[plane]
+                };
             }
             // Half the rays aimed into the box (hits), half anywhere.
             let mut d = Vec3::new(r(1.0), r(1.0), r(1.0));
