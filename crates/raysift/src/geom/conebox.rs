@@ -28,7 +28,7 @@
 //! can, so the test is conservative for cones built by [`super::Cone::around_directions`].
 
 use super::Aabb;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec3A};
 
 /// The 12 box edges, `axis * 4 + m`: the edge runs along `axis`; bit 0 of `m` picks min/max on
 /// axis `(axis+1)%3`, bit 1 on axis `(axis+2)%3`.
@@ -183,27 +183,33 @@ impl ConeQuery {
         }
         // Cheap decisions first, from the box's bounding sphere (centre `c`, radius `r`): the
         // centre is a point of the box, so the centre inside the cone means overlap; a sphere
-        // farther than `r` from the (convex, α < 90°) cone means none. Distance from `w = c − A`
-        // to the cone, in the plane of the axis and `w` (axial `n`, radial `m`): to the apex
-        // when `w` projects behind the rim line (`n·cos α + m·sin α < 0`), else `m·cos α −
-        // n·sin α`. Most of DACRT's cone/cell pairs are decided here; boxes straddling the
-        // cone's boundary go on to the exact test.
-        let w = (lo + hi) * 0.5 - a;
-        let (l2, r2) = (w.length_squared(), ((hi - lo) * 0.5).length_squared());
-        if inside_cone(w, d, self.cos2) {
-            return true;
-        }
-        let n = d.dot(w);
-        let m = (l2 - n * n).max(0.0).sqrt();
-        let gap = m * self.cos_a - n * self.sin_a;
-        // Margin: a relative 1e-9 is far above the f64 rounding of these few operations.
-        let far = if n * self.cos_a + m * self.sin_a < 0.0 {
-            l2 > r2 * (1.0 + 1e-9)
-        } else {
-            gap > 0.0 && gap * gap > r2 * (1.0 + 1e-9)
-        };
-        if far {
-            return false;
+        // farther than `r` from the (convex, α < 90°) cone means none. In the plane of the axis
+        // and `w = c − A` (axial `n`, radial `m`), `gap = m·cos α − n·sin α` is the signed
+        // distance to the rim line: negative only inside the cone, and never more than the
+        // distance to the cone (which is `gap` when `w` projects onto the rim ray, `s = n·cos α +
+        // m·sin α ≥ 0`, else `|w|`). Most of DACRT's cone/cell pairs are decided here, in f32
+        // (SIMD); `margin` covers the f32 rounding of these few operations (a handful of ε of
+        // the magnitudes involved: 64 ε is several times that), and only spheres within it of
+        // the cone's boundary, or straddling it, go on to the exact test in f64.
+        {
+            let (lo, hi, a) = (Vec3A::from(b.min), Vec3A::from(b.max), Vec3A::from(apex));
+            let d = Vec3A::from(d.as_vec3());
+            let c = (lo + hi) * 0.5;
+            let w = c - a;
+            let r = ((hi - lo) * 0.5).length();
+            let n = d.dot(w);
+            let m = (w - d * n).length();
+            let l = w.length();
+            let (ca, sa) = (self.cos_a as f32, self.sin_a as f32);
+            let gap = m * ca - n * sa;
+            let margin =
+                64.0 * f32::EPSILON * (a.abs().max_element() + c.abs().max_element() + l + r);
+            if gap < -margin {
+                return true;
+            }
+            if gap > r + margin || (n * ca + m * sa < -margin && l > r + margin) {
+                return false;
+            }
         }
         // The axis ray: the shared conservative slab test.
         if b.ray_interval(apex, Vec3::ONE / d.as_vec3(), 0.0, f32::INFINITY)

@@ -83,7 +83,7 @@ pub struct Cone {
 
 impl Cone {
     /// The tightest cone around unit directions `dirs` from `apex`, axis = normalised mean,
-    /// half-angle measured with `atan2(|d×a|, d·a)` (accurate near zero, unlike `acos`), plus a
+    /// half-angle from the largest `|d×a| / (d·a)` (accurate near zero, unlike `acos`), plus a
     /// relative margin. `None` when the directions span a half-space or more.
     pub fn around_directions(apex: Vec3, dirs: impl Iterator<Item = Vec3> + Clone) -> Option<Self> {
         let sum: Vec3 = dirs.clone().map(|d| d.normalize_or_zero()).sum();
@@ -91,12 +91,22 @@ impl Cone {
         if axis == Vec3::ZERO {
             return None;
         }
-        let mut angle = 0.0f32;
+        // The widest angle is the largest tangent |d×a| / (d·a) (monotonic below 90°): one
+        // `atan` per cone instead of one `atan2` per direction, same value up to an ulp or two,
+        // far inside the margin below. A direction at 90° or more gives no cone.
+        let mut tan = 0.0f32;
         for d in dirs {
             let d = d.normalize_or_zero();
-            angle = angle.max(d.cross(axis).length().atan2(d.dot(axis)));
+            let (sin, cos) = (d.cross(axis).length(), d.dot(axis));
+            if sin > 0.0 {
+                // `cos` NaN (an infinite direction) gives no cone either.
+                if cos.is_nan() || cos <= 0.0 {
+                    return None;
+                }
+                tan = tan.max(sin / cos);
+            }
         }
-        let half_angle = angle * (1.0 + 1e-4) + 1e-6;
+        let half_angle = tan.atan() * (1.0 + 1e-4) + 1e-6;
         (half_angle < std::f32::consts::FRAC_PI_2).then_some(Self {
             apex,
             axis,

@@ -343,11 +343,19 @@ impl Packets {
         }
     }
 
-    /// Bits of the rays packet `c` has.
-    fn full_mask(&self, c: usize, perm: &[u64]) -> u64 {
-        let mut m = 0u64;
-        self.for_each(c, perm, |_, b| m |= 1 << b);
-        m
+    /// Bits of the rays packet `c` has (closed form of the bits [`Self::for_each`] visits).
+    fn full_mask(&self, c: usize, _perm: &[u64]) -> u64 {
+        let low = |n: usize| if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
+        match *self {
+            Packets::None => 0,
+            Packets::Tiles { width, rows, tw } => {
+                let (ty, tx) = (c / tw, c % tw);
+                let (w, h) = ((width - tx * 8).min(8), (rows - ty * 8).min(8));
+                // `w` low bits in each of the first `h` bytes.
+                low(w) * (low(8 * h) / 0xff)
+            }
+            Packets::Runs { len } => low(len.min(c * 64 + 64) - c * 64),
+        }
     }
 }
 
@@ -1234,6 +1242,26 @@ mod tests {
         let o = [("mode".to_string(), "random".to_string())];
         let c: Config = crate::tracers::config_from_opts("dacrt", &o).unwrap();
         assert_eq!(c.mode, Mode::Random);
+    }
+
+    #[test]
+    fn full_mask_is_the_bits_visited() {
+        let perm: Vec<u64> = (0..150u64).map(|k| k | k << 32).collect();
+        let runs = Packets::Runs { len: 150 };
+        for (width, rows) in [(8, 8), (13, 16), (20, 5), (3, 21), (64, 64)] {
+            let tiles = Packets::Tiles {
+                width,
+                rows,
+                tw: width.div_ceil(8),
+            };
+            for p in [tiles, runs] {
+                for c in 0..p.count() {
+                    let mut m = 0u64;
+                    p.for_each(c, &perm, |_, b| m |= 1 << b);
+                    assert_eq!(p.full_mask(c, &perm), m, "{p:?} packet {c}");
+                }
+            }
+        }
     }
 
     #[test]
