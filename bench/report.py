@@ -167,7 +167,7 @@ def write_report(res, results_path: Path, md_path: Path):
              f"shadow and bounce rays from the camera hits, {m['random_rays']:,} random rays. "
              f"Each contender is a separate process; contenders alternate (A B C … A B C …), "
              f"1 warm-up round + {m['rounds']} measured rounds; each process prepares and traces "
-             f"{m.get('inproc_runs', 1)} time(s) (once where a run takes ≥ 0.4 s, and for naive) and its last run counts (steady state: buffers, allocator and "
+             f"{m.get('inproc_runs', 1)} time(s) (once where a run takes ≥ {m.get('long_run_ms', 400) / 1e3:g} s, and for naive) and its last run counts (steady state: buffers, allocator and "
              "thread pools warm, the structure rebuilt from scratch); times are medians over rounds with "
              "[min–max] spread, read from each tool's own JSON (process start-up and file loading excluded).")
     L.append("* *Dynamic frame* = prepare (build) + trace, as for a scene that changes every frame. "

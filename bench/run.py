@@ -208,6 +208,9 @@ def scene_list(args, mode):
 
 
 def slug(spec):
+    if spec.startswith("tile:") and spec.count(":") >= 2:
+        _, k, f = spec.split(":", 2)
+        return f"tile{k}x{k}_" + slug(f)
     name = Path(spec).name if "/" in spec else spec
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
@@ -759,7 +762,7 @@ def main(argv=None):
         meta=dict(date=now.strftime("%Y-%m-%d %H:%M UTC"), mode=mode_name,
                   command="python3 bench/run.py " + shlex.join(sys.argv[1:] if argv is None else argv),
                   cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
-                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], camera=[mode["width"], mode["height"]],
+                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], long_run_ms=LONG_RUN_MS, camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
                   raysift_tracers=tracers, raysift_binary=str(raysift),
                   raysift_version=run_proc([raysift, "--version"])[0].strip(), kernel=platform.release(), versions=versions(),
