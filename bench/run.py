@@ -722,14 +722,15 @@ def main(argv=None):
     ap.add_argument("--work", help="scratch folder for rays/hits (default bench/work)")
     ap.add_argument("--keep-work", action="store_true", help="keep the rays and hits files")
     ap.add_argument("--out", help="results JSON (default bench/results/<date>[-quick].json)")
-    ap.add_argument("--md", default=str(BENCH / "BENCHMARKS.generated.md"), help="Markdown output")
+    ap.add_argument("--md", help="Markdown output (default bench/BENCHMARKS.generated.md; "
+                    "bench/BENCHMARKS.quick.generated.md for --quick)")
     args = ap.parse_args(argv)
 
     if args.report:
         res = json.loads(Path(args.report).read_text())
         sys.path.insert(0, str(BENCH))
         from report import write_report  # noqa: E402  (bench/report.py)
-        write_report(res, Path(args.report), Path(args.md))
+        write_report(res, Path(args.report), Path(args.md or BENCH / "BENCHMARKS.generated.md"))
         return 0
 
     mode_name = "check" if args.check else "quick" if args.quick else "full"
@@ -800,7 +801,8 @@ def main(argv=None):
         log(f"\nwrote {out}")
         sys.path.insert(0, str(BENCH))
         from report import write_report  # noqa: E402
-        write_report(results, out, Path(args.md))
+        md = args.md or BENCH / ("BENCHMARKS.quick.generated.md" if args.quick else "BENCHMARKS.generated.md")
+        write_report(results, out, Path(md))
     n_checks = sum(len(w["agreement"]) for s in results["scenes"] for w in s["workloads"].values())
     n_bad = len(results["disagreements"])
     log(f"\n{len(results['failures'])} failed run(s); {time.perf_counter() - started:.0f} s")
