@@ -440,6 +440,19 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         );
     }
 
+    /// Fills `tri_idx` with the ids of the non-degenerate triangles (degenerate ones have an
+    /// empty span and are never hit) and returns their count. Every root list holds only
+    /// triangles some box can hold: the second child takes the first child's rejects untested.
+    fn live_triangles(&mut self) -> usize {
+        let span = self.span[0];
+        let mut n = 0;
+        for (t, s) in span.iter().enumerate() {
+            self.tri_idx[n] = t as u32;
+            n += (s[0] <= s[1]) as usize;
+        }
+        n
+    }
+
     /// In-place filter of `ray_idx[rterm..rend]` against `b` (full slab test, §3.2: no stacked
     /// intervals). Returns the new end.
     ///
@@ -569,8 +582,17 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
     }
 
-    /// Algorithm 1 on rays `ray_idx[rterm..rend]` and triangles `tri_idx[..nt]` in `cell`.
-    fn ray_rec(&mut self, cell: Aabb, nt: usize, rend: usize, depth: u32, ord: Order) {
+    /// Algorithm 1 on rays `ray_idx[rterm..rend]` and triangles `tri_idx[..nt]` in `cell`;
+    /// `filtered`: every ray of the list passed a box test against `cell`.
+    fn ray_rec(
+        &mut self,
+        cell: Aabb,
+        nt: usize,
+        rend: usize,
+        depth: u32,
+        ord: Order,
+        filtered: bool,
+    ) {
         self.st.nodes += 1;
         let nr = rend - self.rterm;
         if nr == 0 || nt == 0 {
@@ -583,23 +605,34 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return self.leaf(&cell, nt, rend, ord);
         };
         let low_first = self.low_first(axis, split, rend);
-        for (n, low) in [(0, low_first), (1, !low_first)] {
-            let child = half(&cell, axis, split, low);
-            let (nt2, other) = self.partition_tris(nt, axis, split, low, &child);
-            if n == 0 && nt2 == nt && other == nt {
-                // No progress: every triangle straddles the plane (§3.6 guard).
-                return self.leaf(&cell, nt, rend, ord);
-            }
-            // `rend` is still the parent's end; `rterm` may have moved (terminated rays).
-            let rend2 = self.partition_rays(&child, rend);
-            self.ray_rec(
-                child,
-                nt2,
-                rend2,
-                depth + 1,
-                ord.child(axis, split, n == 0, low),
-            );
+        // First child: both lists filtered; what it rejects stays behind its prefixes.
+        let child = half(&cell, axis, split, low_first);
+        let (nt0, other) = self.partition_tris(nt, axis, split, low_first, &child);
+        if nt0 == nt && other == nt {
+            // No progress: every triangle straddles the plane (§3.6 guard).
+            return self.leaf(&cell, nt, rend, ord);
         }
+        let rend0 = self.partition_rays(&child, rend);
+        let ord0 = ord.child(axis, split, true, low_first);
+        self.ray_rec(child, nt0, rend0, depth + 1, ord0, true);
+        // Second child. A triangle or ray of this cell that the first child's (conservative)
+        // test rejected lies in the second child without a test (the cell is their union); the
+        // first child's recursion only reordered `[0, nt0)` and `[rterm, rend0)` (terminated
+        // rays leave through the `rterm` prefix), so the rejected ones are still at
+        // `[nt0, nt)` and `[rend0, rend)`. Only the first child's survivors are tested. Rays
+        // count as known only when this cell's list was filtered against it.
+        let child = half(&cell, axis, split, !low_first);
+        let (k, _) = self.partition_tris(nt0, axis, split, !low_first, &child);
+        let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
+        let rend1 = if filtered {
+            let k = self.partition_rays(&child, rend0);
+            gather_block(&mut self.ray_idx, k, rend0, rend);
+            gather_block(&mut self.recs, k, rend0, rend)
+        } else {
+            self.partition_rays(&child, rend)
+        };
+        let ord1 = ord.child(axis, split, false, !low_first);
+        self.ray_rec(child, nt1, rend1, depth + 1, ord1, true);
     }
 
     /// The naive leaf (§3.2): every active ray against every triangle, then early termination.
@@ -787,21 +820,22 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             View::To(p) => p[axis] >= split,
             View::Majority => true,
         };
-        for (n, low) in [(0, low_first), (1, !low_first)] {
-            let child = half(&cell, axis, split, low);
-            let (nt2, other) = self.partition_tris(nt, axis, split, low, &child);
-            if n == 0 && nt2 == nt && other == nt {
-                return self.flush(cell, nt, cend, depth, ord);
-            }
-            let cend2 = self.partition_cones(&child, cend);
-            self.cone_rec(
-                child,
-                nt2,
-                cend2,
-                depth + 1,
-                ord.child(axis, split, n == 0, low),
-            );
+        // As in `ray_rec`: what the first child rejects goes to the second without a test.
+        let child = half(&cell, axis, split, low_first);
+        let (nt0, other) = self.partition_tris(nt, axis, split, low_first, &child);
+        if nt0 == nt && other == nt {
+            return self.flush(cell, nt, cend, depth, ord);
         }
+        let cend0 = self.partition_cones(&child, cend);
+        let ord0 = ord.child(axis, split, true, low_first);
+        self.cone_rec(child, nt0, cend0, depth + 1, ord0);
+        let child = half(&cell, axis, split, !low_first);
+        let (k, _) = self.partition_tris(nt0, axis, split, !low_first, &child);
+        let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
+        let k = self.partition_cones(&child, cend0);
+        let cend1 = gather_block(&mut self.cone_idx, k, cend0, cend);
+        let ord1 = ord.child(axis, split, false, !low_first);
+        self.cone_rec(child, nt1, cend1, depth + 1, ord1);
     }
 
     /// FlushCones (Algorithm 2): the active cones' live rays that enter `cell` go to the ray
@@ -834,7 +868,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             });
             self.perm = perm;
         }
-        self.ray_rec(cell, nt, rend, depth, ord);
+        self.ray_rec(cell, nt, rend, depth, ord, self.cfg.flush_filter);
         for p in start..self.rterm {
             let (c, bit) = packets.of(self.ray_idx[p] as usize, &self.perm);
             self.cones[c].done |= 1u64 << bit;
@@ -941,6 +975,25 @@ fn morton_order(rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64>
         v[k] = (v[k] & 0xffff_ffff) | (j as u64) << 32;
     }
     v
+}
+
+/// Moves the block `v[a..e]` to start at `k <= a` (by swaps; the displaced entries end up after
+/// it) and returns the block's new end `k + (e − a)`: after filtering `v[..a]` into `v[..k]`,
+/// this appends the entries known to be kept without a test.
+#[inline]
+fn gather_block<T>(v: &mut [T], k: usize, a: usize, e: usize) -> usize {
+    let (len, gap) = (e - a, a - k);
+    if len <= gap {
+        for i in 0..len {
+            v.swap(k + i, a + i);
+        }
+    } else {
+        // The block's last `gap` entries fill the gap; its head stays where it is.
+        for i in 0..gap {
+            v.swap(k + i, e - gap + i);
+        }
+    }
+    k + len
 }
 
 /// The low or high half of `cell` at `split` on `axis` (both closed, sharing the plane).
@@ -1111,16 +1164,15 @@ impl Dacrt {
         }
         // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root.
         let rend = task.partition_rays(&root, rend);
-        task.ray_rec(root, ntri, rend, 0, Order::NONE);
+        let nlive = task.live_triangles();
+        task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
         if !task.cone_idx.is_empty() {
             // Cones: Algorithm 2 from the root; the ray list is free again.
             task.rterm = 0;
-            for k in 0..ntri {
-                task.tri_idx[k] = k as u32;
-            }
+            let nlive = task.live_triangles();
             let cend = task.cone_idx.len();
             let cend = task.partition_cones(&root, cend);
-            task.cone_rec(root, ntri, cend, 0, Order::NONE);
+            task.cone_rec(root, nlive, cend, 0, Order::NONE);
         }
         if !ANY {
             for k in 0..len {
@@ -1242,6 +1294,28 @@ mod tests {
         let o = [("mode".to_string(), "random".to_string())];
         let c: Config = crate::tracers::config_from_opts("dacrt", &o).unwrap();
         assert_eq!(c.mode, Mode::Random);
+    }
+
+    #[test]
+    fn gather_block_appends_the_block() {
+        // Every (k, a, e) on 12 entries: the block lands at [k, k + e − a), as a set, and the
+        // whole is still a permutation.
+        for a in 0..=12usize {
+            for e in a..=12 {
+                for k in 0..=a {
+                    let mut v: Vec<u32> = (0..12).collect();
+                    let end = gather_block(&mut v, k, a, e);
+                    assert_eq!(end, k + e - a);
+                    assert_eq!(&v[..k], &(0..k as u32).collect::<Vec<_>>()[..]);
+                    let mut got = v[k..end].to_vec();
+                    got.sort();
+                    assert_eq!(got, (a as u32..e as u32).collect::<Vec<_>>(), "{k} {a} {e}");
+                    let mut all = v.clone();
+                    all.sort();
+                    assert_eq!(all, (0..12).collect::<Vec<_>>());
+                }
+            }
+        }
     }
 
     #[test]
