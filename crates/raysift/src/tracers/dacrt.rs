@@ -77,7 +77,7 @@ use crate::geom::{
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
 use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use serde::Deserialize;
 use std::ops::Range;
 use std::sync::Arc;
@@ -430,14 +430,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     #[inline(always)]
     fn load_ray(&mut self, slot: usize, k: usize) {
         let i = self.base + k;
-        let inv = Vec3::ONE / self.rays.dir(i);
+        // One four-lane division (lane 3 then holds the cut-off); per lane the same IEEE
+        // quotient as `1.0 / d`.
+        let mut inv_tmax = Vec4::ONE / self.rays.dir(i).extend(1.0);
+        inv_tmax.w = self.best_cut(k);
         self.ray_idx[slot] = k as u32;
-        self.recs[slot] = RayRec::new(
-            self.rays.origin(i),
-            inv,
-            self.rays.tmin[i],
-            self.best_cut(k),
-        );
+        self.recs[slot] = RayRec {
+            o_tmin: self.rays.origin(i).extend(self.rays.tmin[i]),
+            inv_tmax,
+        };
     }
 
     /// Fills `tri_idx` with the ids of the non-degenerate triangles (degenerate ones have an
