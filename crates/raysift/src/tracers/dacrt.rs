@@ -6,8 +6,10 @@
 //! What implements which part of the paper:
 //! - **§3.1–3.2, Fig. 2–3, Algorithm 1** (`Task::ray_rec`): the in-place recursion. A node is
 //!   `(cell, triangle prefix [0, nt), ray range [rterm, rend))`; each child is built by
-//!   partitioning the parent's prefix (children are prefixes, so the second child re-filters the
-//!   same parent range). Naive leaf when `rays < r_limit` or `triangles < p_limit`.
+//!   partitioning the parent's prefix (children are prefixes). The second child tests only the
+//!   first child's survivors: what the first child rejected lies in the second (the cell is
+//!   their union) and joins it untested (`gather_block`). Naive leaf when `rays < r_limit` or
+//!   `triangles < p_limit`.
 //! - **Early ray termination** (§3.2): finished rays are swapped into the global prefix
 //!   `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is final;
 //!   see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch of the
