@@ -643,37 +643,29 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         if nt <= LEAF4_MAX {
             return self.leaf4(cell, nt, rend, ord);
         }
-        self.st.leaves += 1;
         let tris = self.tris;
-        let mut p = self.rterm;
-        while p < rend {
-            let r = self.ray_idx[p] as usize;
-            let i = self.base + r;
-            let rec = self.recs[p].o_tmin;
-            let (o, d, tmin) = (rec.truncate(), self.rays.dir(i), rec.w);
-            let done = if ANY {
-                let tmax = self.rays.tmax[i];
-                let mut hit = false;
-                for q in 0..nt {
-                    let t = self.tri_idx[q] as usize;
-                    self.st.ray_tri += 1;
+        // The ray loop needs `self`; the index list is lent out meanwhile (no allocation).
+        let idx = std::mem::take(&mut self.tri_idx);
+        let ids = &idx[..nt];
+        self.leaf_rays(
+            cell,
+            rend,
+            ord,
+            |o, d, tmin, tmax| {
+                let mut tests = 0;
+                for &t in ids {
+                    let t = t as usize;
+                    tests += 1;
                     if intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax)
                         .is_some()
                     {
-                        hit = true;
-                        break;
+                        return (true, tests);
                     }
                 }
-                if hit {
-                    self.occ[r] = true;
-                }
-                // Any hit is final, in any order.
-                hit
-            } else {
-                let (mut bt, mut bp, mut bu, mut bv) =
-                    (self.t[r], self.prim[r], self.u[r], self.v[r]);
-                for q in 0..nt {
-                    let t = self.tri_idx[q];
+                (false, tests)
+            },
+            |o, d, tmin, (mut bt, mut bp, mut bu, mut bv)| {
+                for &t in ids {
                     let tu = t as usize;
                     if let Some(h) =
                         intersect_triangle(o, d, tris.v0[tu], tris.v1[tu], tris.v2[tu], tmin, bt)
@@ -683,18 +675,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                         }
                     }
                 }
-                self.st.ray_tri += nt as u64;
-                (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
-                self.recs[p].inv_tmax.w = widen(bt);
-                self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
-            };
-            if done {
-                self.ray_idx.swap(p, self.rterm);
-                self.recs.swap(p, self.rterm);
-                self.rterm += 1;
-            }
-            p += 1;
-        }
+                ((bt, bp, bu, bv), nt as u64)
+            },
+        );
+        self.tri_idx = idx;
     }
 
     /// [`Self::leaf`] for up to [`LEAF4_MAX`] triangles: they are gathered once into groups of
@@ -703,7 +687,6 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// best `t` at its start, then its lanes go through [`closer`] in triangle order, and a lane
     /// beyond the running best fails `closer` just as it would have failed the scalar `tmax`.
     fn leaf4(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
-        self.st.leaves += 1;
         let tris = self.tris;
         let mut buf = [Tri4::default(); LEAF4_MAX / 4];
         let mut ids = [0u32; LEAF4_MAX];
@@ -714,30 +697,21 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             buf[q / 4].set(q % 4, tris.v0[tu], tris.v1[tu], tris.v2[tu]);
         }
         let groups = &buf[..nt.div_ceil(4)];
-        let mut tests = 0u64;
-        let mut p = self.rterm;
-        while p < rend {
-            let r = self.ray_idx[p] as usize;
-            let i = self.base + r;
-            let rec = self.recs[p].o_tmin;
-            let (o, d, tmin) = (rec.truncate(), self.rays.dir(i), rec.w);
-            let done = if ANY {
-                let tmax = self.rays.tmax[i];
-                let mut hit = false;
+        self.leaf_rays(
+            cell,
+            rend,
+            ord,
+            |o, d, tmin, tmax| {
+                let mut tests = 0;
                 for g in groups {
                     tests += 4;
                     if intersect_triangle4(o, d, g, tmin, tmax).mask != 0 {
-                        hit = true;
-                        break;
+                        return (true, tests);
                     }
                 }
-                if hit {
-                    self.occ[r] = true;
-                }
-                hit
-            } else {
-                let (mut bt, mut bp, mut bu, mut bv) =
-                    (self.t[r], self.prim[r], self.u[r], self.v[r]);
+                (false, tests)
+            },
+            |o, d, tmin, (mut bt, mut bp, mut bu, mut bv)| {
                 for (gi, g) in groups.iter().enumerate() {
                     let h = intersect_triangle4(o, d, g, tmin, bt);
                     let mut m = h.mask;
@@ -750,7 +724,44 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                         }
                     }
                 }
-                tests += nt as u64;
+                ((bt, bp, bu, bv), nt as u64)
+            },
+        );
+    }
+
+    /// The ray loop both leaves share: each active ray runs `any_hit(o, d, tmin, tmax)` (any-hit
+    /// tasks) or `closest(o, d, tmin, best)` (closest-hit tasks: the best `(t, prim, u, v)` so
+    /// far in, the new best out), each also returning its ray/triangle test count; then the
+    /// result is written back and finished rays move behind the terminated-ray pivot.
+    #[inline(always)]
+    fn leaf_rays(
+        &mut self,
+        cell: &Aabb,
+        rend: usize,
+        ord: Order,
+        any_hit: impl Fn(Vec3, Vec3, f32, f32) -> (bool, u64),
+        closest: impl Fn(Vec3, Vec3, f32, (f32, u32, f32, f32)) -> ((f32, u32, f32, f32), u64),
+    ) {
+        self.st.leaves += 1;
+        let mut tests = 0u64;
+        let mut p = self.rterm;
+        while p < rend {
+            let r = self.ray_idx[p] as usize;
+            let i = self.base + r;
+            let rec = self.recs[p].o_tmin;
+            let (o, d, tmin) = (rec.truncate(), self.rays.dir(i), rec.w);
+            let done = if ANY {
+                let (hit, n) = any_hit(o, d, tmin, self.rays.tmax[i]);
+                tests += n;
+                if hit {
+                    self.occ[r] = true;
+                }
+                // Any hit is final, in any order.
+                hit
+            } else {
+                let best = (self.t[r], self.prim[r], self.u[r], self.v[r]);
+                let ((bt, bp, bu, bv), n) = closest(o, d, tmin, best);
+                tests += n;
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
                 self.recs[p].inv_tmax.w = widen(bt);
                 self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)
