@@ -49,6 +49,14 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("c_limit", "100000"),
         ("max_shadow_cone_deg", "30"),
     ]));
+    // Camera packets bounded by the paper's cones instead of their pixel rectangles.
+    out.push(opts(&[
+        ("mode", "packet"),
+        ("tasks", "2"),
+        ("screen_cull", "false"),
+        ("c_limit", "4"),
+        ("p_limit", "4"),
+    ]));
     out
 }
 
@@ -183,6 +191,55 @@ fn dacrt_cornell_outside_and_inside() {
         fov_deg: 120.0,
     };
     check_camera(s, cam, 33, 27, light, "cornell inside, odd size");
+}
+
+/// Batches labelled pinhole whose rays are not exactly on their pixels: jittered within a pixel
+/// (the path tracer's primary rays: screen-space culling pads the rectangles by the measured
+/// deviation) and shuffled among pixels (the projection is refused, cones bound the tiles).
+#[test]
+fn dacrt_pinhole_layout_with_jittered_and_shuffled_rays() {
+    use rand::{Rng, SeedableRng};
+    let s = Arc::new(procedural::icosphere(3000));
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.3);
+    let (w, h) = (48usize, 40usize);
+    let exact = cam.rays(w as u32, h as u32);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let jittered = RayBatch::from_rays((0..w * h).map(|k| {
+        let (i, j) = (k % w, k / w);
+        let d = exact.dir(k);
+        let di = exact.dir(if i + 1 < w { k + 1 } else { k - 1 }) - d;
+        let dj = exact.dir(if j + 1 < h { k + w } else { k - w }) - d;
+        let (a, b): (f32, f32) = (rng.gen(), rng.gen());
+        Ray {
+            origin: cam.eye,
+            dir: (d + a * di + b * dj).normalize(),
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        }
+    }));
+    let mut perm: Vec<usize> = (0..w * h).collect();
+    for k in (1..perm.len()).rev() {
+        perm.swap(k, rng.gen_range(0..=k));
+    }
+    let shuffled = RayBatch::from_rays(perm.iter().map(|&k| exact.get(k)));
+    for (mut rays, what, culls) in [
+        (exact.clone(), "exact", true),
+        (jittered, "jittered", true),
+        (shuffled, "shuffled", false),
+    ] {
+        rays.layout = exact.layout;
+        let hits = check(&s, &rays, what);
+        assert!(hits.hit_count() > 100, "{what}");
+        // Whether screen-space culling ran: it changes the work counts.
+        let stats = |cull: &str| {
+            let cfg = opts(&[("mode", "packet"), ("tasks", "1"), ("screen_cull", cull)]);
+            let mut d = tracers::create("dacrt", &cfg).unwrap();
+            d.prepare(s.clone()).unwrap();
+            let st = d.intersect_timed(&rays).1;
+            (st.cone_box, st.ray_box, st.nodes)
+        };
+        assert_eq!(stats("true") != stats("false"), culls, "{what}");
+    }
 }
 
 /// Axis-parallel rays exactly on the median planes (x, y, z ∈ {−1, −0.5, 0, 0.5, 1}) and

@@ -1,0 +1,252 @@
+//! Pinhole projection of boxes to pixel rectangles: screen-space culling for DACRT's camera
+//! packets (an alternative to the cone bound of Mora 2011 §3.3, in the spirit of the frustum
+//! culling of Hoedt's 5D DACRT; BENCHMARKS.md compares them).
+//!
+//! The rays of a pinhole image are, up to rounding, `d(i, j) ∝ G·(i, j, 1)` for a 3×3 matrix `G`
+//! (pixel indices to directions). [`PixelProjection::fit`] recovers `H = G⁻¹` from the four
+//! corner rays (the 4-point projective basis), and [`PixelProjection::deviation`] measures, for
+//! each ray, how far `H` maps its direction from its own pixel: the batch's own directions are
+//! the ground truth, the model is only trusted as far as it was measured (a few thousandths of
+//! a pixel for exact pinhole rays, up to about a pixel for rays jittered inside their pixels).
+//!
+//! Why a box's rectangle is conservative: a ray of pixel `(i, j)` that meets box `B` does so at
+//! `p = eye + t·d`, `t > 0`; `H·(p − eye) = t·H·d`, so `p` projects to `d`'s pixel, within the
+//! measured deviation `tol` of `(i, j)`. When every corner of `B` projects with a positive depth (`(H·w).z >
+//! 0`, linear in `w`, so positive on the whole box), the projective map is defined on `B` and
+//! keeps convexity: `B` projects into the hull of its projected corners, inside their bounding
+//! rectangle. Boxes reaching behind the eye have no rectangle (`None`): callers fall back to an
+//! exact test.
+
+use super::Aabb;
+use glam::{DMat3, DVec2, DVec3, Vec3};
+
+/// World directions to pixel coordinates of one pinhole image (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelProjection {
+    eye: DVec3,
+    /// Direction `w` → homogeneous pixel `(x·z, y·z, z)`, `z > 0` in front.
+    h: DMat3,
+}
+
+impl PixelProjection {
+    /// The projection whose pixels `(0, 0)`, `(w−1, 0)`, `(0, h−1)` and `(w−1, h−1)` have the
+    /// directions `corners` (in that order), or `None` when they do not determine one (an image
+    /// less than 2 pixels wide or high, parallel or non-finite corner rays).
+    pub fn fit(eye: Vec3, width: u32, height: u32, corners: [Vec3; 4]) -> Option<Self> {
+        if width < 2 || height < 2 || !eye.is_finite() {
+            return None;
+        }
+        let (x1, y1) = ((width - 1) as f64, (height - 1) as f64);
+        let p = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(x1, 0.0, 1.0),
+            DVec3::new(0.0, y1, 1.0),
+            DVec3::new(x1, y1, 1.0),
+        ];
+        let d = corners.map(|c| c.as_dvec3());
+        // The matrix sending the basis vectors to multiples of q[0..3] and (1, 1, 1) to q[3].
+        let basis = |q: [DVec3; 4]| -> Option<DMat3> {
+            let m = DMat3::from_cols(q[0], q[1], q[2]);
+            let det = m.determinant();
+            if !det.is_finite() || det.abs() < 1e-300 {
+                return None;
+            }
+            let s = m.inverse() * q[3];
+            Some(DMat3::from_cols(q[0] * s.x, q[1] * s.y, q[2] * s.z))
+        };
+        let a = basis(p)?;
+        let b = basis(d)?;
+        let det = b.determinant();
+        if !det.is_finite() || det.abs() < 1e-300 {
+            return None;
+        }
+        // G = B·A⁻¹ (pixels to directions), H = G⁻¹ = A·B⁻¹.
+        let mut h = a * b.inverse();
+        if (h * d[0]).z < 0.0 {
+            h = -h;
+        }
+        let pp = Self {
+            eye: eye.as_dvec3(),
+            h,
+        };
+        h.is_finite().then_some(pp)
+    }
+
+    /// The pixel coordinates of direction `w`, `None` behind the eye (or on its plane).
+    #[inline]
+    pub fn pixel(&self, w: DVec3) -> Option<DVec2> {
+        let u = self.h * w;
+        (u.z > 0.0).then(|| DVec2::new(u.x / u.z, u.y / u.z))
+    }
+
+    /// How far (in pixels, per coordinate) direction `d` projects from pixel `(i, j)`; +inf
+    /// behind the eye, NaN for a NaN direction.
+    #[inline]
+    pub fn deviation(&self, d: Vec3, i: usize, j: usize) -> f64 {
+        match self.pixel(d.as_dvec3()) {
+            Some(q) => (q.x - i as f64).abs().max((q.y - j as f64).abs()),
+            None => f64::INFINITY,
+        }
+    }
+
+    /// The pixels `(i, j)` whose rays can meet `b`, for rays with [`Self::deviation`] at most
+    /// `tol`: inclusive integer ranges `[x0, x1]`, `[y0, y1]` (possibly empty, possibly outside
+    /// the image), or `None` when part of `b` is not in front of the eye.
+    pub fn box_pixels(&self, b: &Aabb, tol: f64) -> Option<[i64; 4]> {
+        let (lo, hi) = (b.min.as_dvec3() - self.eye, b.max.as_dvec3() - self.eye);
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for k in 0..8 {
+            let w = DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let q = self.pixel(w)?;
+            x0 = x0.min(q.x);
+            x1 = x1.max(q.x);
+            y0 = y0.min(q.y);
+            y1 = y1.max(q.y);
+        }
+        // The rays' deviation, plus the f64 rounding of the corners' projections and of the
+        // deviation itself (relative 1e-12 is thousands of ulps; plus an absolute 1e-6 pixel).
+        let pad = |v: f64| tol + 1e-6 + v.abs() * 1e-12;
+        let (x0, x1, y0, y1) = (x0 - pad(x0), x1 + pad(x1), y0 - pad(y0), y1 + pad(y1));
+        if !(x0.is_finite() && x1.is_finite() && y0.is_finite() && y1.is_finite()) {
+            return None;
+        }
+        // Clamp far outside any image (i64 range; a box near the eye's plane projects far out).
+        const BIG: f64 = 1e15;
+        Some([
+            x0.clamp(-BIG, BIG).ceil() as i64,
+            x1.clamp(-BIG, BIG).floor() as i64,
+            y0.clamp(-BIG, BIG).ceil() as i64,
+            y1.clamp(-BIG, BIG).floor() as i64,
+        ])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rays::Camera;
+    use rand::{Rng, SeedableRng};
+
+    fn fit_camera(c: &Camera, w: u32, h: u32) -> (PixelProjection, crate::rays::RayBatch) {
+        let rays = c.rays(w, h);
+        let (wu, hu) = (w as usize, h as usize);
+        let corners = [0, wu - 1, (hu - 1) * wu, hu * wu - 1].map(|k| rays.dir(k));
+        (
+            PixelProjection::fit(c.eye, w, h, corners).expect("a camera has a projection"),
+            rays,
+        )
+    }
+
+    #[test]
+    fn camera_rays_project_to_their_pixels() {
+        for (look, up, fov) in [
+            (Vec3::new(0.0, 0.0, -1.0), Vec3::Y, 60.0),
+            (Vec3::new(3.0, -1.0, 0.5), Vec3::Z, 27.0),
+            (Vec3::new(-1.0, 2.0, 7.0), Vec3::new(0.3, 1.0, 0.0), 120.0),
+        ] {
+            let c = Camera {
+                eye: Vec3::new(1.0, 2.0, 3.0),
+                look: Vec3::new(1.0, 2.0, 3.0) + look,
+                up,
+                fov_deg: fov,
+            };
+            let (w, h) = (97u32, 61u32);
+            let (p, rays) = fit_camera(&c, w, h);
+            for j in 0..h as usize {
+                for i in 0..w as usize {
+                    let e = p.deviation(rays.dir(j * w as usize + i), i, j);
+                    assert!(e < 1e-3, "{i} {j}: {e}");
+                }
+            }
+            // A neighbour's direction is a pixel away.
+            assert!((p.deviation(rays.dir(5), 4, 0) - 1.0).abs() < 1e-3);
+            assert!((p.deviation(rays.dir(w as usize), 0, 0) - 1.0).abs() < 1e-3);
+            // Behind the eye: no pixel.
+            assert!(p.pixel(-rays.dir(0).as_dvec3()).is_none());
+        }
+    }
+
+    #[test]
+    fn fit_refuses_what_is_no_projection() {
+        let d = [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE];
+        assert!(PixelProjection::fit(Vec3::ZERO, 1, 5, d).is_none());
+        assert!(PixelProjection::fit(Vec3::ZERO, 5, 5, [Vec3::X; 4]).is_none());
+        let mut nan = d;
+        nan[2].x = f32::NAN;
+        assert!(PixelProjection::fit(Vec3::ZERO, 5, 5, nan).is_none());
+    }
+
+    /// The rectangle holds the pixel of every ray that meets the box (brute force over random
+    /// boxes, through the shared slab test), and `None` exactly when a corner is behind the eye.
+    #[test]
+    fn box_pixels_hold_every_ray_that_meets_the_box() {
+        let c = Camera {
+            eye: Vec3::new(0.2, -0.1, 4.0),
+            look: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 50.0,
+        };
+        let (w, h) = (64u32, 48u32);
+        let (p, rays) = fit_camera(&c, w, h);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let (mut met, mut tight, mut none) = (0, 0, 0);
+        for _ in 0..400 {
+            let a = Vec3::new(
+                rng.gen_range(-3.0..3.0),
+                rng.gen_range(-3.0..3.0),
+                rng.gen_range(-2.0..5.0),
+            );
+            let s = Vec3::new(
+                rng.gen_range(0.0..1.5),
+                rng.gen_range(0.0..1.5),
+                rng.gen_range(0.0..1.5),
+            );
+            let b = Aabb::new(a, a + s);
+            let r = p.box_pixels(&b, 1e-3);
+            let behind = (0..8).any(|k| {
+                let q = Vec3::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                (q - c.eye).dot(c.look - c.eye) <= 0.0
+            });
+            assert_eq!(r.is_none(), behind, "{b:?}");
+            let Some([x0, x1, y0, y1]) = r else {
+                none += 1;
+                continue;
+            };
+            let mut inside = 0;
+            for j in 0..h as usize {
+                for i in 0..w as usize {
+                    let k = j * w as usize + i;
+                    let (o, d) = (rays.origin(k), rays.dir(k));
+                    let hit = b
+                        .ray_interval(o, Vec3::ONE / d, 0.0, f32::INFINITY)
+                        .is_some();
+                    let inr = (x0..=x1).contains(&(i as i64)) && (y0..=y1).contains(&(j as i64));
+                    if hit {
+                        met += 1;
+                        assert!(inr, "ray {i},{j} meets {b:?} outside {:?}", r);
+                    }
+                    inside += inr as usize;
+                }
+            }
+            // Not vacuous: some rectangles are smaller than the image.
+            tight += (inside < (w * h) as usize) as usize;
+        }
+        assert!(
+            met > 1000 && tight > 50 && none > 10,
+            "{met} {tight} {none}"
+        );
+    }
+}
