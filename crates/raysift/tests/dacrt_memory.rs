@@ -58,10 +58,11 @@ struct Case {
     occluded: (usize, usize),
 }
 
-fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize) -> Case {
+fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &str) -> Case {
     let opts = vec![
         ("mode".to_string(), mode.to_string()),
         ("tasks".to_string(), tasks.to_string()),
+        ("max_shadow_cone_deg".to_string(), shadow_deg.to_string()),
     ];
     let mut d = tracers::create("dacrt", &opts).unwrap();
     // Outputs are the caller's: allocate them outside the measurement.
@@ -116,12 +117,19 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 ("packet", &cam),
                 ("auto", &random),
                 ("shadow", &shadow),
+                ("shadow rays", &shadow),
             ] {
+                // Shadow packets are off by default ("shadow rays"); "shadow" turns them on.
                 let c = run(
                     scene,
                     rays,
-                    if mode == "shadow" { "packet" } else { mode },
+                    if mode.starts_with("shadow") {
+                        "packet"
+                    } else {
+                        mode
+                    },
                     tasks,
+                    if mode == "shadow" { "1" } else { "0" },
                 );
                 // Held between calls: per axis, a [min, max] pair per triangle.
                 assert_eq!(c.prepare, 24 * t, "prepare {mode}");

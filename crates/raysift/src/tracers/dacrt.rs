@@ -70,12 +70,13 @@
 //!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`) and, in packet
 //!   mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
 //!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
-//!   the bands are whole tile rows) and, for shadow rays, `68·⌈R_task/64⌉` per task plus `8·R`
-//!   (the Morton order of the rays that groups them into compact packets).
+//!   the bands are whole tile rows) and, for shadow rays when shadow packets are on
+//!   (`max_shadow_cone_deg > 0`), `68·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
+//!   rays that groups them into compact packets).
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
-//! `b = 36` (ray and random modes), `37.0625` (camera packets, full tiles), `45.0625` (shadow
-//! packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
+//! `b = 36` (ray and random modes, and shadow rays by default), `37.0625` (camera packets, full
+//! tiles), `45.0625` (shadow packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
 //! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
 //! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
 
@@ -136,8 +137,13 @@ pub struct Config {
     /// Camera packets whose cone half-angle exceeds this (degrees) are traced as rays.
     /// Default 20.
     pub max_cone_deg: f32,
-    /// The same for shadow packets, whose 64 rays are grouped by position and can be far apart
-    /// (a wide light cone reaches many cells and floods their leaves with rays). Default 1.
+    /// The same for shadow packets (§3.3's cones from the light), whose 64 rays are grouped by
+    /// position and can be far apart (a wide light cone reaches many cells and floods their
+    /// leaves with rays); 0 turns shadow packets off. Default 0: measured at 1024² on the
+    /// camera hits, 1° packets took 1428 ms vs 551 ms for rays on the 871K dragon, 428 vs 372
+    /// on the bunny, 658 vs 387 on a 202K dragon, and won only on Sponza (285 vs 379, light
+    /// inside the scene): a cone from the light keeps every cell along its 64 segments alive,
+    /// doubling the triangle/box tests (BENCHMARKS.md, Fig. 8).
     pub max_shadow_cone_deg: f32,
     /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
     /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
@@ -162,7 +168,7 @@ impl Default for Config {
             max_depth: 64,
             tasks: 0,
             max_cone_deg: 20.0,
-            max_shadow_cone_deg: 1.0,
+            max_shadow_cone_deg: 0.0,
             flush_filter: true,
             screen_cull: true,
         }
@@ -835,15 +841,16 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         self.st.cone_box += (cend - self.cterm) as u64;
         if let (Some([x0, x1, y0, y1]), Packets::Tiles { tw, .. }) = (self.pixels(b), self.packets)
         {
-            // Tile rectangle against the cell's pixel rectangle: a branch-free Lomuto partition
-            // (see `partition_rays`).
+            // A tile stays when one of its live (not terminated) pixels is inside the cell's
+            // pixel rectangle: a branch-free Lomuto partition (see `partition_rays`). Pixel
+            // granularity is what makes front-to-back termination cull: a cone stays alive in
+            // every cell it meets while one of its 64 rays is, a pixel only where it is.
             let ids = &mut self.cone_idx[..cend];
             for p in self.cterm..cend {
                 let c = ids[p] as usize;
-                let (tx, ty) = ((c % tw) as i64 * 8, (c / tw) as i64 * 8);
-                let keep = tx <= x1 && tx + 7 >= x0 && ty <= y1 && ty + 7 >= y0;
+                let live = tile_mask(c % tw, c / tw, [x0, x1, y0, y1]) & !self.cones[c].done;
                 ids.swap(k, p);
-                k += keep as usize;
+                k += (live != 0) as usize;
             }
             return k;
         }
@@ -1163,7 +1170,7 @@ impl Dacrt {
                 let chunk = n.div_ceil(64).div_ceil(k).max(1) * 64;
                 let plan = Plan {
                     terminate: mode != Mode::Random,
-                    packets: packets_ok,
+                    packets: packets_ok && self.cfg.max_shadow_cone_deg > 0.0,
                     view: View::To(target),
                     chunk,
                     proj: None,
@@ -1431,6 +1438,8 @@ mod tests {
         let c: Config = crate::tracers::config_from_opts("dacrt", &[]).unwrap();
         assert_eq!(c, Config::default());
         assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 0));
+        // Shadow packets off by default (measured slower than rays on 3 of 4 scenes).
+        assert_eq!(c.max_shadow_cone_deg, 0.0);
         assert_eq!(
             (c.split_sample_threshold, c.split_sample_stride),
             (10_000, 50)
