@@ -1,6 +1,8 @@
 //! Fig. 8 of Mora 2011 for raysift's `dacrt`: counters and times for Basic (ray mode), Conic
 //! packets and Conic + 1 light (shadow rays to a point light), on a scene spec, camera rays from
-//! `Camera::framing`.
+//! `Camera::framing`. Two versions of the packet rows: the paper's (camera tiles bounded by
+//! cones, shadow rays in light cones: `screen_cull=false max_shadow_cone_deg=1`) and raysift's
+//! defaults (screen-space culling of the tiles, shadow rays traced as rays).
 //!
 //! `cargo run --release -p raysift --example dacrt_counts -- sphere:1000000 [W H] [key=value ...]`
 //! (options are passed to every dacrt run; `naive=1` also times the brute-force tracer on a
@@ -50,10 +52,12 @@ fn main() {
         rayon::current_num_threads()
     );
 
-    let make = |mode: &str| {
+    let make = |opts: &[(&str, &str)]| {
         let mut o = extra.clone();
-        if !o.iter().any(|(k, _)| k == "mode") {
-            o.push(("mode".into(), mode.into()));
+        for (k, v) in opts {
+            if !o.iter().any(|(key, _)| key == k) {
+                o.push((k.to_string(), v.to_string()));
+            }
         }
         let mut t = tracers::create("dacrt", &o).expect("options");
         let p = t.prepare_timed(scene.clone()).unwrap();
@@ -61,7 +65,7 @@ fn main() {
     };
     let mut cols: Vec<(&str, Stats, f64)> = Vec::new();
     // Basic: ray mode.
-    let (t, p) = make("ray");
+    let (t, p) = make(&[("mode", "ray")]);
     println!(
         "prepare (per-axis min/max lists): {:.1} ms, {} bytes held",
         p.prepare_ms,
@@ -69,22 +73,42 @@ fn main() {
     );
     let (_, s) = t.intersect_timed(&rays);
     cols.push(("Basic (ray)", s.clone(), p.prepare_ms + s.trace_ms));
-    // Conic packets.
-    let (t, p) = make("packet");
-    let (hits, s) = t.intersect_timed(&rays);
-    cols.push(("Conic packets", s.clone(), p.prepare_ms + s.trace_ms));
-    // Conic + 1 light: camera pass plus shadow pass (occlusion) with light cones.
-    let (shadow, _) = shadow_rays(&scene, &rays, &hits, light);
-    let (_, s2) = t.occluded_timed(&shadow);
-    let sum = s.clone() + s2.clone();
-    cols.push((
-        "Conic + 1 light",
-        sum,
-        p.prepare_ms + s.trace_ms + s2.trace_ms,
-    ));
-    // Shadow pass alone, and the random-ray mode on camera rays, for reference.
-    cols.push(("(shadow pass)", s2.clone(), s2.trace_ms));
-    let (t, p) = make("random");
+    // Conic packets and Conic + 1 light (camera pass plus shadow pass, occlusion), as in the
+    // paper, then with raysift's defaults.
+    let mut shadow = raysift::RayBatch::default();
+    for (packets, light_pass, shadow_pass, opts) in [
+        (
+            "Conic packets",
+            "Conic + 1 light",
+            "(shadow pass)",
+            [
+                ("mode", "packet"),
+                ("screen_cull", "false"),
+                ("max_shadow_cone_deg", "1"),
+            ],
+        ),
+        (
+            "Screen-culled",
+            "Screen + 1 light",
+            "(shadow rays)",
+            [
+                ("mode", "packet"),
+                ("screen_cull", "true"),
+                ("max_shadow_cone_deg", "0"),
+            ],
+        ),
+    ] {
+        let (t, p) = make(&opts);
+        let (hits, s) = t.intersect_timed(&rays);
+        cols.push((packets, s.clone(), p.prepare_ms + s.trace_ms));
+        shadow = shadow_rays(&scene, &rays, &hits, light).0;
+        let (_, s2) = t.occluded_timed(&shadow);
+        let sum = s.clone() + s2.clone();
+        cols.push((light_pass, sum, p.prepare_ms + s.trace_ms + s2.trace_ms));
+        cols.push((shadow_pass, s2.clone(), s2.trace_ms));
+    }
+    // The random-ray mode on camera rays, for reference.
+    let (t, p) = make(&[("mode", "random")]);
     let (_, s) = t.intersect_timed(&rays);
     cols.push(("Random mode", s.clone(), p.prepare_ms + s.trace_ms));
     // Incoherent rays: as many uniformly random rays in the scene box, random mode (auto).
