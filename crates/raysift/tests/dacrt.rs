@@ -42,6 +42,7 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("max_cone_deg", "80"),
         ("max_shadow_cone_deg", "80"),
         ("flush_filter", "false"),
+        ("pixel_cull", "false"),
     ]));
     out.push(opts(&[
         ("mode", "packet"),

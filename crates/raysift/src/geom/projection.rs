@@ -18,7 +18,7 @@
 //! exact test.
 
 use super::Aabb;
-use glam::{DMat3, DVec2, DVec3, Vec3};
+use glam::{BVec4A, DMat3, DVec2, DVec3, Mat3A, Vec3, Vec3A, Vec4};
 
 /// World directions to pixel coordinates of one pinhole image (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,6 +26,11 @@ pub struct PixelProjection {
     eye: DVec3,
     /// Direction `w` → homogeneous pixel `(x·z, y·z, z)`, `z > 0` in front.
     h: DMat3,
+    /// f32 copies for the per-triangle test (`eye` is an f32 point to begin with), and the
+    /// rows' 1-norms of `h`, rounded up, for its rounding bound.
+    eye32: Vec3A,
+    h32: Mat3A,
+    rows1: Vec3A,
 }
 
 impl PixelProjection {
@@ -65,9 +70,21 @@ impl PixelProjection {
         if (h * d[0]).z < 0.0 {
             h = -h;
         }
+        let rows1 = DVec3::new(
+            h.row(0).abs().element_sum(),
+            h.row(1).abs().element_sum(),
+            h.row(2).abs().element_sum(),
+        ) * (1.0 + 1e-6);
         let pp = Self {
             eye: eye.as_dvec3(),
             h,
+            eye32: eye.into(),
+            h32: Mat3A::from_cols(
+                h.x_axis.as_vec3().into(),
+                h.y_axis.as_vec3().into(),
+                h.z_axis.as_vec3().into(),
+            ),
+            rows1: rows1.as_vec3().into(),
         };
         h.is_finite().then_some(pp)
     }
@@ -130,6 +147,98 @@ impl PixelProjection {
     }
 }
 
+impl PixelProjection {
+    /// False only when no pixel `(i, j)` with `i ∈ [xs[0], xs[1]]`, `j ∈ [ys[0], ys[1]]` has a
+    /// ray (from the eye, [`Self::deviation`] at most `tol`) that the shared ray/triangle test
+    /// can report as a hit on triangle `v`: every such hit point projects within `tol` of its
+    /// pixel and lies in the triangle, which projects onto the triangle of its projected
+    /// corners. Conservative: triangles reaching behind the eye, near-degenerate projections
+    /// (slivers, edge-on triangles: the triangle test's barycentric rounding grows as they
+    /// thin) and those whose padded rectangle holds more than one pixel are kept without the
+    /// edge test (the rectangle alone culls those holding none).
+    pub fn triangle_may_cover(&self, v: [Vec3; 3], tol: f64, xs: [i64; 2], ys: [i64; 2]) -> bool {
+        self.triangles_may_cover4([v; 4], tol, xs, ys)[0]
+    }
+
+    /// [`Self::triangle_may_cover`] for four triangles (the same computation, lane by lane).
+    pub fn triangles_may_cover4(
+        &self,
+        tri: [[Vec3; 3]; 4],
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+    ) -> [bool; 4] {
+        // In f32, with a rounding bound per vertex: `w = v − eye`, `u = H·w` (f32 copy of H)
+        // differ from the exact `H·(v − eye)` by at most γ·(row 1-norm of H)·max|w| per
+        // coordinate, γ = 8ε being over twice the γ₆ of these operations (including the
+        // rounding of H to f32); the division adds a relative ε and, with `u.z` at least twice
+        // its error, at most doubles the numerator's.
+        const G: f32 = 8.0 * f32::EPSILON;
+        let h = &self.h32;
+        let (r1, e) = (self.rows1, self.eye32);
+        let mut behind = BVec4A::splat(false);
+        let (mut qx, mut qy) = ([Vec4::ZERO; 3], [Vec4::ZERO; 3]);
+        let mut err = Vec4::ZERO;
+        for k in 0..3 {
+            let (a, b, c, d) = (tri[0][k], tri[1][k], tri[2][k], tri[3][k]);
+            let wx = Vec4::new(a.x, b.x, c.x, d.x) - Vec4::splat(e.x);
+            let wy = Vec4::new(a.y, b.y, c.y, d.y) - Vec4::splat(e.y);
+            let wz = Vec4::new(a.z, b.z, c.z, d.z) - Vec4::splat(e.z);
+            let row = |r: usize| wx * h.x_axis[r] + wy * h.y_axis[r] + wz * h.z_axis[r];
+            let (ux, uy, uz) = (row(0), row(1), row(2));
+            let m = wx.abs().max(wy.abs()).max(wz.abs());
+            // NaN-safe: a NaN `uz` fails the comparison, the lane counts as behind.
+            behind |= !uz.cmpgt(m * (2.0 * G * r1.z));
+            let inv = Vec4::ONE / uz;
+            let (px, py) = (ux * inv, uy * inv);
+            let scale = m * inv * (2.0 * G);
+            let ex =
+                scale * (Vec4::splat(r1.x) + px.abs() * r1.z) + px.abs() * (2.0 * f32::EPSILON);
+            let ey =
+                scale * (Vec4::splat(r1.y) + py.abs() * r1.z) + py.abs() * (2.0 * f32::EPSILON);
+            err = err.max(ex).max(ey);
+            (qx[k], qy[k]) = (px, py);
+        }
+        let (lx, hx) = (qx[0].min(qx[1]).min(qx[2]), qx[0].max(qx[1]).max(qx[2]));
+        let (ly, hy) = (qy[0].min(qy[1]).min(qy[2]), qy[0].max(qy[1]).max(qy[2]));
+        let ext = (hx - lx).max(hy - ly);
+        // The projection's rounding; the rays' deviation; the triangle test's slack (a hit may
+        // lie outside the exact triangle by its barycentric rounding: for projections at least
+        // 1% as wide as long, well under 1e-4 of the extent); a thousandth of a pixel; and
+        // the f32 rounding of the differences in the edge test.
+        let mag = lx.abs().max(hx.abs()).max(ly.abs()).max(hy.abs());
+        let pad = err + Vec4::splat(tol as f32 + 1e-3) + ext * 1e-4 + mag * (8.0 * f32::EPSILON);
+        // The candidate pixels, clamped to the ranges (exact small integers in f32).
+        let x0 = (lx - pad).ceil().max(Vec4::splat(xs[0] as f32));
+        let x1 = (hx + pad).floor().min(Vec4::splat(xs[1] as f32));
+        let y0 = (ly - pad).ceil().max(Vec4::splat(ys[0] as f32));
+        let y1 = (hy + pad).floor().min(Vec4::splat(ys[1] as f32));
+        // Lanes with a candidate (NaN compares false: no candidate, but such lanes are behind).
+        let some = x0.cmple(x1) & y0.cmple(y1);
+        // The edge test, four-wide, for lanes with exactly one candidate pixel `p = (x0, y0)`
+        // (tiny triangles: the case that matters); lanes with more are kept untested, as are
+        // near-degenerate projections (area below 1% of the extent squared, and NaN).
+        // Inward edge normals `n` (counter-clockwise after orienting by the area's sign); `p`
+        // is within `pad` of edge line `k` iff `s = n·(p − a) ≥ 0` or `s² ≤ pad²·|n|²`.
+        let single = x0.cmpeq(x1) & y0.cmpeq(y1);
+        let area2 = (qx[1] - qx[0]) * (qy[2] - qy[0]) - (qy[1] - qy[0]) * (qx[2] - qx[0]);
+        let thin = !area2.abs().cmpge(ext * ext * 0.01) | ext.cmpeq(Vec4::ZERO);
+        let sgn = area2.signum();
+        let pad2 = pad * pad;
+        let mut inside = BVec4A::splat(true);
+        for k in 0..3 {
+            let (ax, ay) = (qx[k], qy[k]);
+            let (bx, by) = (qx[(k + 1) % 3], qy[(k + 1) % 3]);
+            let (nx, ny) = ((ay - by) * sgn, (bx - ax) * sgn);
+            let s = nx * (x0 - ax) + ny * (y0 - ay);
+            inside &= s.cmpge(Vec4::ZERO) | (s * s).cmple(pad2 * (nx * nx + ny * ny));
+        }
+        let keep = behind | (some & (!single | thin | inside));
+        let m = keep.bitmask();
+        [m & 1 != 0, m & 2 != 0, m & 4 != 0, m & 8 != 0]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -183,6 +292,90 @@ mod tests {
         let mut nan = d;
         nan[2].x = f32::NAN;
         assert!(PixelProjection::fit(Vec3::ZERO, 5, 5, nan).is_none());
+    }
+
+    /// No triangle that some camera ray hits (through the shared triangle test) is culled,
+    /// exact or jittered rays; tiny triangles between pixel centres are culled (not vacuous);
+    /// the scalar and four-wide forms agree.
+    #[test]
+    fn culled_triangles_are_hit_by_no_ray() {
+        use crate::geom::intersect_triangle;
+        let c = Camera {
+            eye: Vec3::new(0.3, 0.2, 4.0),
+            look: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 50.0,
+        };
+        let (w, h) = (40u32, 30u32);
+        let (p, exact) = fit_camera(&c, w, h);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        // Jittered: each direction moved up to half a pixel towards its neighbours.
+        let mut jittered = exact.clone();
+        for k in 0..exact.len() {
+            let (i, j) = (k % w as usize, k / w as usize);
+            let d = exact.dir(k);
+            let di = exact.dir(if i + 1 < w as usize { k + 1 } else { k - 1 }) - d;
+            let dj = exact.dir(if j + 1 < h as usize {
+                k + w as usize
+            } else {
+                k - w as usize
+            }) - d;
+            let (a, b): (f32, f32) = (rng.gen_range(0.0..0.5), rng.gen_range(0.0..0.5));
+            let n = (d + a * di + b * dj).normalize();
+            (jittered.dx[k], jittered.dy[k], jittered.dz[k]) = (n.x, n.y, n.z);
+        }
+        let tol_of = |rays: &crate::rays::RayBatch| {
+            (0..rays.len())
+                .map(|k| p.deviation(rays.dir(k), k % w as usize, k / w as usize))
+                .fold(0.0f64, f64::max)
+        };
+        let (xs, ys) = ([0, w as i64 - 1], [0, h as i64 - 1]);
+        for rays in [&exact, &jittered] {
+            let tol = tol_of(rays);
+            let (mut culled, mut hit) = (0, 0);
+            for _ in 0..600 {
+                let tri: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
+                    let c = Vec3::new(
+                        rng.gen_range(-2.0..2.0),
+                        rng.gen_range(-1.5..1.5),
+                        rng.gen_range(-2.0..5.0),
+                    );
+                    let s = 10f32.powf(rng.gen_range(-3.0..-0.5));
+                    std::array::from_fn(|_| {
+                        c + Vec3::new(
+                            rng.gen_range(-s..s),
+                            rng.gen_range(-s..s),
+                            rng.gen_range(-s..s),
+                        )
+                    })
+                });
+                let keep = p.triangles_may_cover4(tri, tol, xs, ys);
+                for l in 0..4 {
+                    assert_eq!(keep[l], p.triangle_may_cover(tri[l], tol, xs, ys));
+                    let [a, b, c2] = tri[l];
+                    let hits = (0..rays.len()).any(|k| {
+                        intersect_triangle(
+                            rays.origin(k),
+                            rays.dir(k),
+                            a,
+                            b,
+                            c2,
+                            0.0,
+                            f32::INFINITY,
+                        )
+                        .is_some()
+                    });
+                    assert!(
+                        keep[l] || !hits,
+                        "culled a triangle a ray hits: {:?}",
+                        tri[l]
+                    );
+                    culled += !keep[l] as usize;
+                    hit += hits as usize;
+                }
+            }
+            assert!(culled > 300 && hit > 100, "culled {culled}, hit {hit}");
+        }
     }
 
     /// The rectangle holds the pixel of every ray that meets the box (brute force over random
