@@ -453,6 +453,8 @@ struct Task<'a, const ANY: bool> {
     proj: Option<PixelProjection>,
     tol: f64,
     row0: i64,
+    /// False when screen-space culling decides every cell (the cones are then not built).
+    cones_built: bool,
     cones: Vec<PackedCone>,
     cone_idx: Vec<u32>,
     /// Shadow packets: rays grouped by a Morton code of their origin so that 64 consecutive
@@ -898,6 +900,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             }
             return k;
         }
+        if !self.cones_built {
+            // Unreachable in exact arithmetic (every cell is inside the root, in front of the
+            // eye); kept conservative should rounding make a cell's rectangle fail.
+            return cend;
+        }
         for p in self.cterm..cend {
             let c = &self.cones[self.cone_idx[p] as usize];
             if c.q.overlaps(self.apex, b) {
@@ -1288,6 +1295,7 @@ impl Dacrt {
             proj: None,
             tol: 0.0,
             row0: 0,
+            cones_built: true,
             cones: vec![
                 PackedCone {
                     q: ConeQuery::default(),
@@ -1317,9 +1325,41 @@ impl Dacrt {
             _ => self.cfg.max_cone_deg,
         }
         .to_radians();
+        let mut cull = None;
+        if let (Some(proj), Packets::Tiles { width, rows, .. }) = (plan.proj, packets) {
+            // Screen-space culling with the largest deviation of a ray from its pixel (rounding
+            // for exact pinhole rays; up to about a pixel for jittered ones), for rays from the
+            // eye (the layout is only a hint).
+            let row0 = range.start / width;
+            let mut tol = 0.0f64;
+            let mut from_eye = true;
+            for k in 0..len {
+                let i = range.start + k;
+                let e = proj.deviation(rays.dir(i), k % width, row0 + k / width);
+                // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
+                tol = if e > tol || e.is_nan() { e } else { tol };
+                from_eye &= rays.origin(i) == apex && rays.tmin[i] >= 0.0;
+            }
+            if from_eye && tol <= MAX_PIXEL_DEVIATION {
+                if self.cfg.screen_cull {
+                    (task.proj, task.tol, task.row0) = (Some(proj), tol, row0 as i64);
+                    // Every cell lies in front of the eye when the root does: the cones would
+                    // never be tested, and are not built (see `partition_cones`).
+                    task.cones_built = task.pixels(&scene.bounds()).is_none();
+                }
+                if self.cfg.pixel_cull {
+                    let ys = [row0 as i64, (row0 + rows) as i64 - 1];
+                    cull = Some((proj, tol, [0, width as i64 - 1], ys));
+                }
+            }
+        }
         // Packets first: coherent ones become cones, the rays of the others go to the ray list.
         let mut rend = 0;
         for c in 0..ncones {
+            if !task.cones_built {
+                task.cone_idx.push(c as u32);
+                continue;
+            }
             match task.build_cone(c, max_angle) {
                 Some(cone) => {
                     task.cones[c] = cone;
@@ -1332,27 +1372,6 @@ impl Dacrt {
                         rend += 1;
                     });
                     task.perm = perm;
-                }
-            }
-        }
-        let mut cull = None;
-        if let (Some(proj), Packets::Tiles { width, rows, .. }) = (plan.proj, packets) {
-            // Screen-space culling with the largest deviation of a ray from its pixel (rounding
-            // for exact pinhole rays; up to about a pixel for jittered ones).
-            let row0 = range.start / width;
-            let mut tol = 0.0f64;
-            for k in 0..len {
-                let e = proj.deviation(rays.dir(range.start + k), k % width, row0 + k / width);
-                // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
-                tol = if e > tol || e.is_nan() { e } else { tol };
-            }
-            if tol <= MAX_PIXEL_DEVIATION {
-                if self.cfg.screen_cull {
-                    (task.proj, task.tol, task.row0) = (Some(proj), tol, row0 as i64);
-                }
-                if self.cfg.pixel_cull {
-                    let ys = [row0 as i64, (row0 + rows) as i64 - 1];
-                    cull = Some((proj, tol, [0, width as i64 - 1], ys));
                 }
             }
         }
