@@ -1,8 +1,8 @@
 //! Fig. 8 of Mora 2011 for raysift's `dacrt`: counters and times for Basic (ray mode), Conic
 //! packets and Conic + 1 light (shadow rays to a point light), on a scene spec, camera rays from
 //! `Camera::framing`. Two versions of the packet rows: the paper's (camera tiles bounded by
-//! cones, shadow rays in light cones: `screen_cull=false max_shadow_cone_deg=1`) and raysift's
-//! defaults (screen-space culling of the tiles, shadow rays traced as rays).
+//! cones, shadow rays in light cones: `screen_cull=false pixel_cull=false max_shadow_cone_deg=1`)
+//! and raysift's defaults (screen-space and pixel culling, shadow rays traced as rays).
 //!
 //! `cargo run --release -p raysift --example dacrt_counts -- sphere:1000000 [W H] [key=value ...]`
 //! (options are passed to every dacrt run; `naive=1` also times the brute-force tracer on a
@@ -84,6 +84,7 @@ fn main() {
             [
                 ("mode", "packet"),
                 ("screen_cull", "false"),
+                ("pixel_cull", "false"),
                 ("max_shadow_cone_deg", "1"),
             ],
         ),
@@ -94,6 +95,7 @@ fn main() {
             [
                 ("mode", "packet"),
                 ("screen_cull", "true"),
+                ("pixel_cull", "true"),
                 ("max_shadow_cone_deg", "0"),
             ],
         ),
