@@ -106,6 +106,15 @@ impl PixelProjection {
         }
     }
 
+    /// Whether direction `d` projects within `tol` of pixel `(i, j)` ([`Self::deviation`]
+    /// `≤ tol` up to f64 rounding, which [`Self::box_pixels`] pads for), without divisions.
+    #[inline]
+    pub fn within(&self, d: Vec3, i: usize, j: usize, tol: f64) -> bool {
+        let u = self.h * d.as_dvec3();
+        let r = tol * u.z;
+        u.z > 0.0 && (u.x - i as f64 * u.z).abs() <= r && (u.y - j as f64 * u.z).abs() <= r
+    }
+
     /// The pixels `(i, j)` whose rays can meet `b`, for rays with [`Self::deviation`] at most
     /// `tol`: inclusive integer ranges `[x0, x1]`, `[y0, y1]` (possibly empty, possibly outside
     /// the image), or `None` when part of `b` is not in front of the eye.
@@ -154,7 +163,7 @@ impl PixelProjection {
     /// pixel and lies in the triangle, which projects onto the triangle of its projected
     /// corners. Conservative: triangles reaching behind the eye, near-degenerate projections
     /// (slivers, edge-on triangles: the triangle test's barycentric rounding grows as they
-    /// thin) and those whose padded rectangle holds more than one pixel are kept without the
+    /// thin) and those whose padded rectangle holds more than two pixels are kept without the
     /// edge test (the rectangle alone culls those holding none).
     pub fn triangle_may_cover(&self, v: [Vec3; 3], tol: f64, xs: [i64; 2], ys: [i64; 2]) -> bool {
         self.triangles_may_cover4([v; 4], tol, xs, ys)[0]
@@ -215,25 +224,29 @@ impl PixelProjection {
         let y1 = (hy + pad).floor().min(Vec4::splat(ys[1] as f32));
         // Lanes with a candidate (NaN compares false: no candidate, but such lanes are behind).
         let some = x0.cmple(x1) & y0.cmple(y1);
-        // The edge test, four-wide, for lanes with exactly one candidate pixel `p = (x0, y0)`
-        // (tiny triangles: the case that matters); lanes with more are kept untested, as are
-        // near-degenerate projections (area below 1% of the extent squared, and NaN).
-        // Inward edge normals `n` (counter-clockwise after orienting by the area's sign); `p`
-        // is within `pad` of edge line `k` iff `s = n·(p − a) ≥ 0` or `s² ≤ pad²·|n|²`.
-        let single = x0.cmpeq(x1) & y0.cmpeq(y1);
+        // The edge test, four-wide, for lanes with one or two candidate pixels, `(x0, y0)` and
+        // `(x1, y1)` (tiny triangles: the case that matters); lanes with more are kept
+        // untested, as are near-degenerate projections (area below 1% of the extent squared,
+        // and NaN). Inward edge normals `n` (counter-clockwise after orienting by the area's
+        // sign); `p` is within `pad` of edge line `k` iff `s = n·(p − a) ≥ 0` or
+        // `s² ≤ pad²·|n|²`.
+        let few = ((x1 - x0) + (y1 - y0)).cmple(Vec4::ONE);
         let area2 = (qx[1] - qx[0]) * (qy[2] - qy[0]) - (qy[1] - qy[0]) * (qx[2] - qx[0]);
         let thin = !area2.abs().cmpge(ext * ext * 0.01) | ext.cmpeq(Vec4::ZERO);
         let sgn = area2.signum();
         let pad2 = pad * pad;
-        let mut inside = BVec4A::splat(true);
+        let (mut in0, mut in1) = (BVec4A::splat(true), BVec4A::splat(true));
         for k in 0..3 {
             let (ax, ay) = (qx[k], qy[k]);
             let (bx, by) = (qx[(k + 1) % 3], qy[(k + 1) % 3]);
             let (nx, ny) = ((ay - by) * sgn, (bx - ax) * sgn);
-            let s = nx * (x0 - ax) + ny * (y0 - ay);
-            inside &= s.cmpge(Vec4::ZERO) | (s * s).cmple(pad2 * (nx * nx + ny * ny));
+            let r2 = pad2 * (nx * nx + ny * ny);
+            let s0 = nx * (x0 - ax) + ny * (y0 - ay);
+            in0 &= s0.cmpge(Vec4::ZERO) | (s0 * s0).cmple(r2);
+            let s1 = nx * (x1 - ax) + ny * (y1 - ay);
+            in1 &= s1.cmpge(Vec4::ZERO) | (s1 * s1).cmple(r2);
         }
-        let keep = behind | (some & (!single | thin | inside));
+        let keep = behind | (some & (!few | thin | in0 | in1));
         let m = keep.bitmask();
         [m & 1 != 0, m & 2 != 0, m & 4 != 0, m & 8 != 0]
     }
@@ -274,6 +287,9 @@ mod tests {
                 for i in 0..w as usize {
                     let e = p.deviation(rays.dir(j * w as usize + i), i, j);
                     assert!(e < 1e-3, "{i} {j}: {e}");
+                    assert!(p.within(rays.dir(j * w as usize + i), i, j, 1e-3));
+                    assert!(!p.within(rays.dir(j * w as usize + i), i + 1, j, 0.9));
+                    assert!(!p.within(rays.dir(j * w as usize + i), i, j + 1, 0.9));
                 }
             }
             // A neighbour's direction is a pixel away.

@@ -1331,14 +1331,24 @@ impl Dacrt {
             // for exact pinhole rays; up to about a pixel for jittered ones), for rays from the
             // eye (the layout is only a hint).
             let row0 = range.start / width;
-            let mut tol = 0.0f64;
             let mut from_eye = true;
+            // Exact pinhole rays pass a fixed tolerance without a division per ray; otherwise
+            // the largest deviation is measured.
+            let mut tol = 1.0 / 256.0;
             for k in 0..len {
                 let i = range.start + k;
-                let e = proj.deviation(rays.dir(i), k % width, row0 + k / width);
-                // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
-                tol = if e > tol || e.is_nan() { e } else { tol };
                 from_eye &= rays.origin(i) == apex && rays.tmin[i] >= 0.0;
+                if !proj.within(rays.dir(i), k % width, row0 + k / width, tol) {
+                    tol = -1.0;
+                }
+            }
+            if tol < 0.0 {
+                tol = 0.0;
+                for k in 0..len {
+                    let e = proj.deviation(rays.dir(range.start + k), k % width, row0 + k / width);
+                    // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
+                    tol = if e > tol || e.is_nan() { e } else { tol };
+                }
             }
             if from_eye && tol <= MAX_PIXEL_DEVIATION {
                 if self.cfg.screen_cull {
