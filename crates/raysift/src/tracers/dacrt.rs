@@ -977,14 +977,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                     let bit = m.trailing_zeros() as usize;
                     m &= m - 1;
                     let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
-                    self.load_ray(rend, k);
-                    if filter {
-                        self.st.ray_box += 1;
-                        if !cell.hit_by_packed(&self.recs[rend]) {
-                            continue;
-                        }
-                    }
-                    rend += 1;
+                    rend += self.flush_ray(&cell, rend, k, filter) as usize;
                 }
             }
             return self.flushed(cell, nt, start, rend, cend, depth, ord);
@@ -997,21 +990,25 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 // Live rays only, and (optionally) only those entering the cell; unfiltered
                 // rays are still correct (Algorithm 1 filters them if it divides further, and
                 // a naive leaf is correct for any ray).
-                if done & (1u64 << bit) != 0 {
-                    return;
+                if done & (1u64 << bit) == 0 {
+                    rend += self.flush_ray(&cell, rend, k, filter) as usize;
                 }
-                self.load_ray(rend, k);
-                if filter {
-                    self.st.ray_box += 1;
-                    if !cell.hit_by_packed(&self.recs[rend]) {
-                        return;
-                    }
-                }
-                rend += 1;
             });
             self.perm = perm;
         }
         self.flushed(cell, nt, start, rend, cend, depth, ord)
+    }
+
+    /// Loads ray `k` into list slot `slot` for a flush of `cell`; true when it stays there (it
+    /// passes the ray/box test, or `filter` is off).
+    #[inline(always)]
+    fn flush_ray(&mut self, cell: &Aabb, slot: usize, k: usize, filter: bool) -> bool {
+        self.load_ray(slot, k);
+        if !filter {
+            return true;
+        }
+        self.st.ray_box += 1;
+        cell.hit_by_packed(&self.recs[slot])
     }
 
     /// The rest of [`Self::flush`], once the rays `ray_idx[start..rend]` are loaded.
