@@ -11,11 +11,13 @@
 //!
 //! Why a box's rectangle is conservative: a ray of pixel `(i, j)` that meets box `B` does so at
 //! `p = eye + t·d`, `t > 0`; `H·(p − eye) = t·H·d`, so `p` projects to `d`'s pixel, within the
-//! measured deviation `tol` of `(i, j)`. When every corner of `B` projects with a positive depth (`(H·w).z >
-//! 0`, linear in `w`, so positive on the whole box), the projective map is defined on `B` and
-//! keeps convexity: `B` projects into the hull of its projected corners, inside their bounding
-//! rectangle. Boxes reaching behind the eye have no rectangle (`None`): callers fall back to an
-//! exact test.
+//! measured deviation `tol` of `(i, j)`. When every corner of `B` projects with a positive
+//! depth (`(H·w).z > 0`, linear in `w`, so positive on the whole box), the projective map is
+//! defined on `B` and keeps convexity: `B` projects into the hull of its projected corners,
+//! inside their bounding rectangle. Boxes reaching behind the eye have no rectangle (`None`):
+//! callers fall back to an exact test. The same argument for a triangle (the hull of its three
+//! projected corners) gives [`PixelProjection::triangle_may_cover`]: a triangle whose
+//! projection, padded, holds no pixel centre is hit by no ray of the image.
 
 use super::Aabb;
 use glam::{BVec4A, DMat3, DVec2, DVec3, Mat3A, Vec3, Vec3A, Vec4};

@@ -41,18 +41,20 @@
 //! - **Screen-space culling** (ours, `Config::screen_cull`; the idea of Hoedt's frustum
 //!   culling, in pixels): a camera batch is a pinhole image, so instead of each tile's cone,
 //!   a cell is projected once onto the image ([`crate::geom::PixelProjection`], fitted to the
-//!   corner rays and checked against every ray of every cone) and the tiles are tested by
+//!   corner rays and checked against every ray of the task) and the tiles are tested by
 //!   integer rectangle overlap; a flush loads only the live rays of a tile inside the cell's
 //!   pixel rectangle, and a tile stays in a cell only while one of its live (not terminated)
-//!   pixels is inside. Cells reaching behind the eye keep the exact cone test. Dragon, 1024²:
-//!   the cone/box tests were 15% of the frame, the flush loop another 15%; the frame went
-//!   from 556 to 410 ms (BENCHMARKS.md).
+//!   pixels is inside. Cells reaching behind the eye keep the exact cone test (when the whole
+//!   scene is in front of the eye, the cones are not built at all). Dragon, 1024²: the
+//!   cone/box tests were 15% of the frame, the flush loop another 15%; the frame went from
+//!   556 to 410 ms (BENCHMARKS.md).
 //! - **Pixel culling** (ours, `Config::pixel_cull`): before dividing, the triangles whose
 //!   projection covers no pixel centre of the task's image rows are dropped: no ray of the
 //!   batch can hit them ([`crate::geom::PixelProjection::triangles_may_cover4`], four-wide,
-//!   with a rounding bound). Meshes denser than the image are mostly such triangles: 67% of
-//!   the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 41M, frame
-//!   690 → 570 ms), 34% of the 871K dragon (about even: the cull costs what it saves).
+//!   with a rounding bound). Meshes denser than the image are mostly such triangles: over two
+//!   thirds of the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 37M; its
+//!   frame through the harness went from 827 to 573 ms with this and the cone skip above),
+//!   a third of the 871K dragon (about even there: the cull costs what it saves).
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
 //!   any-hit: every hit terminates its ray, in every mode.
@@ -83,9 +85,10 @@
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `37.0625` (camera packets, full
-//! tiles), `45.0625` (shadow packets, task shares multiple of 64 rays). These are total bytes allocated per call, so also
-//! a bound on the peak; `Stats::peak_bytes` reports the largest task's share. The integration
-//! test `tests/dacrt_memory.rs` checks the formula exactly with a counting allocator.
+//! tiles), `45.0625` (shadow packets, task shares multiple of 64 rays). These are total bytes
+//! allocated per call, so also a bound on the peak; `Stats::peak_bytes` reports the largest
+//! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
+//! counting allocator. Screen-space and pixel culling allocate nothing.
 
 use crate::error::Result;
 use crate::geom::{
@@ -448,8 +451,8 @@ struct Task<'a, const ANY: bool> {
     packets: Packets,
     apex: Vec3,
     /// Screen-space culling of camera tiles (`Config::screen_cull`), when every ray of the
-    /// task's cones projects within `tol` pixels of its own pixel; `row0` is the image row of
-    /// the task's first.
+    /// task starts at the eye and projects within `tol` pixels of its own pixel; `row0` is the
+    /// image row of the task's first.
     proj: Option<PixelProjection>,
     tol: f64,
     row0: i64,
