@@ -82,6 +82,16 @@ impl Aabb {
         (self.min + self.max) * 0.5
     }
 
+    /// Corner `k` of 8: bit 0 of `k` picks `max.x` over `min.x`, bit 1 the y side, bit 2 z.
+    #[inline]
+    pub fn corner(&self, k: usize) -> Vec3 {
+        Vec3::new(
+            if k & 1 == 0 { self.min.x } else { self.max.x },
+            if k & 2 == 0 { self.min.y } else { self.max.y },
+            if k & 4 == 0 { self.min.z } else { self.max.z },
+        )
+    }
+
     /// Index of the longest axis (0 = x, 1 = y, 2 = z); ties go to the lower axis.
     #[inline]
     pub fn longest_axis(&self) -> usize {

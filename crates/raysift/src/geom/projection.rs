@@ -121,7 +121,6 @@ impl PixelProjection {
     /// `tol`: inclusive integer ranges `[x0, x1]`, `[y0, y1]` (possibly empty, possibly outside
     /// the image), or `None` when part of `b` is not in front of the eye.
     pub fn box_pixels(&self, b: &Aabb, tol: f64) -> Option<[i64; 4]> {
-        let (lo, hi) = (b.min.as_dvec3() - self.eye, b.max.as_dvec3() - self.eye);
         let (mut x0, mut x1, mut y0, mut y1) = (
             f64::INFINITY,
             f64::NEG_INFINITY,
@@ -129,12 +128,7 @@ impl PixelProjection {
             f64::NEG_INFINITY,
         );
         for k in 0..8 {
-            let w = DVec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            let q = self.pixel(w)?;
+            let q = self.pixel(b.corner(k).as_dvec3() - self.eye)?;
             x0 = x0.min(q.x);
             x1 = x1.max(q.x);
             y0 = y0.min(q.y);
@@ -423,14 +417,7 @@ mod tests {
             );
             let b = Aabb::new(a, a + s);
             let r = p.box_pixels(&b, 1e-3);
-            let behind = (0..8).any(|k| {
-                let q = Vec3::new(
-                    if k & 1 == 0 { b.min.x } else { b.max.x },
-                    if k & 2 == 0 { b.min.y } else { b.max.y },
-                    if k & 4 == 0 { b.min.z } else { b.max.z },
-                );
-                (q - c.eye).dot(c.look - c.eye) <= 0.0
-            });
+            let behind = (0..8).any(|k| (b.corner(k) - c.eye).dot(c.look - c.eye) <= 0.0);
             assert_eq!(r.is_none(), behind, "{b:?}");
             let Some([x0, x1, y0, y1]) = r else {
                 none += 1;

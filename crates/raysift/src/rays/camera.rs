@@ -187,12 +187,7 @@ mod tests {
         let (r, u, f) = c.basis();
         let tan_v = (22.5f32).to_radians().tan();
         for k in 0..8 {
-            let p = Vec3::new(
-                if k & 1 == 0 { b.min.x } else { b.max.x },
-                if k & 2 == 0 { b.min.y } else { b.max.y },
-                if k & 4 == 0 { b.min.z } else { b.max.z },
-            );
-            let d = p - c.eye;
+            let d = b.corner(k) - c.eye;
             let z = d.dot(f);
             assert!(z > 0.0);
             assert!((d.dot(u) / z).abs() <= tan_v * 1.0001);
