@@ -32,6 +32,7 @@ fn configs() -> Vec<Vec<(String, String)>> {
             ("max_depth", "40"),
             ("max_cone_deg", "60"),
             ("max_shadow_cone_deg", "60"),
+            ("pixel_leaf_c_limit", "1"),
         ]));
     }
     // Packets: wide cones allowed (small test images, scattered shadow packets), no ray filter
@@ -43,6 +44,7 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("max_shadow_cone_deg", "80"),
         ("flush_filter", "false"),
         ("pixel_cull", "false"),
+        ("pixel_leaf", "false"),
     ]));
     out.push(opts(&[
         ("mode", "packet"),
@@ -50,13 +52,23 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("c_limit", "100000"),
         ("max_shadow_cone_deg", "30"),
     ]));
-    // Camera packets bounded by the paper's cones instead of their pixel rectangles.
+    // Camera packets bounded by the paper's cones instead of their pixel rectangles, ending in
+    // tile leaves or (the paper) flushed to rays; and the pixel rectangles with flushes.
+    for leaf in ["true", "false"] {
+        out.push(opts(&[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("screen_cull", "false"),
+            ("pixel_leaf", leaf),
+            ("c_limit", "4"),
+            ("pixel_leaf_c_limit", "4"),
+            ("p_limit", "4"),
+        ]));
+    }
     out.push(opts(&[
         ("mode", "packet"),
-        ("tasks", "2"),
-        ("screen_cull", "false"),
-        ("c_limit", "4"),
-        ("p_limit", "4"),
+        ("tasks", "1"),
+        ("pixel_leaf", "false"),
     ]));
     out
 }
@@ -231,15 +243,23 @@ fn dacrt_pinhole_layout_with_jittered_and_shuffled_rays() {
         rays.layout = exact.layout;
         let hits = check(&s, &rays, what);
         assert!(hits.hit_count() > 100, "{what}");
-        // Whether screen-space culling ran: it changes the work counts.
-        let stats = |cull: &str| {
-            let cfg = opts(&[("mode", "packet"), ("tasks", "1"), ("screen_cull", cull)]);
+        // Whether screen-space culling and tile leaves ran: they change the work counts.
+        let stats = |key: &str, on: &str, leaf: &str| {
+            let cfg = opts(&[
+                ("mode", "packet"),
+                ("tasks", "1"),
+                (key, on),
+                ("pixel_leaf", leaf),
+            ]);
             let mut d = tracers::create("dacrt", &cfg).unwrap();
             d.prepare(s.clone()).unwrap();
             let st = d.intersect_timed(&rays).1;
-            (st.cone_box, st.ray_box, st.nodes)
+            (st.cone_box, st.ray_box, st.ray_tri, st.nodes)
         };
-        assert_eq!(stats("true") != stats("false"), culls, "{what}");
+        let screen = |on| stats("screen_cull", on, "false");
+        assert_eq!(screen("true") != screen("false"), culls, "{what}");
+        let leaf = |on| stats("screen_cull", "true", on);
+        assert_eq!(leaf("true") != leaf("false"), culls, "{what}");
     }
 }
 

@@ -136,14 +136,20 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 // Per call: K triangle index lists, one ray index list and 32-byte ray records
                 // (36 bytes per ray), and for packets 68
                 // bytes per 8×8 tile or per 64 shadow rays (here R/64 either way), plus the
-                // shadow rays' 8-byte Morton order.
+                // shadow rays' 8-byte Morton order. Camera packets end in tile leaves: no ray
+                // list, but each task's 8-byte pixel rectangle per triangle and 12 bytes per
+                // tile (its pixels hit in a leaf, and a list of such tiles).
                 let cones = if mode == "packet" || mode == "shadow" {
                     r / 64
                 } else {
                     0
                 };
                 let order = if mode == "shadow" { 8 * r } else { 0 };
-                let want = 4 * t * tasks + 36 * r + 68 * cones + order;
+                let want = if mode == "packet" {
+                    (4 + 8) * t * tasks + (68 + 12) * cones
+                } else {
+                    4 * t * tasks + 36 * r + 68 * cones + order
+                };
                 assert_eq!(c.intersect.0, want, "intersect {mode} tasks {tasks}");
                 assert_eq!(c.occluded.0, want, "occluded {mode} tasks {tasks}");
                 assert!(c.intersect.1 <= want && c.occluded.1 <= want);

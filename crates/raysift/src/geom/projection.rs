@@ -173,6 +173,23 @@ impl PixelProjection {
         xs: [i64; 2],
         ys: [i64; 2],
     ) -> [bool; 4] {
+        self.triangle_rects4(tri, tol, xs, ys)
+            .map(|[x0, x1, y0, y1]| x0 <= x1 && y0 <= y1)
+    }
+
+    /// For four triangles, the pixels `(i, j)` of the ranges `xs`, `ys` whose rays (from the eye,
+    /// [`Self::deviation`] at most `tol`) the shared ray/triangle test can report as hitting
+    /// the triangle: an inclusive rectangle `[x0, x1, y0, y1]` holding them all, empty
+    /// (`x0 > x1` or `y0 > y1`) when there are none, the whole ranges for triangles reaching
+    /// behind the eye. The argument is [`Self::triangle_may_cover`]'s; a rectangle of one or
+    /// two pixels is shrunk to those whose centres pass the edge test.
+    pub fn triangle_rects4(
+        &self,
+        tri: [[Vec3; 3]; 4],
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+    ) -> [[i32; 4]; 4] {
         // In f32, with a rounding bound per vertex: `w = v − eye`, `u = H·w` (f32 copy of H)
         // differ from the exact `H·(v − eye)` by at most γ·(row 1-norm of H)·max|w| per
         // coordinate, γ = 8ε being over twice the γ₆ of these operations (including the
@@ -242,9 +259,36 @@ impl PixelProjection {
             let s1 = nx * (x1 - ax) + ny * (y1 - ay);
             in1 &= s1.cmpge(Vec4::ZERO) | (s1 * s1).cmple(r2);
         }
-        let keep = behind | (some & (!few | thin | in0 | in1));
-        let m = keep.bitmask();
-        [m & 1 != 0, m & 2 != 0, m & 4 != 0, m & 8 != 0]
+        // Lanes whose one or two candidates were edge-tested keep those that passed (the two
+        // candidates of a two-pixel rectangle are its ends).
+        let tested = some & few & !thin;
+        let (b0, b1) = (
+            tested.bitmask() & in0.bitmask(),
+            tested.bitmask() & in1.bitmask(),
+        );
+        let (behind, some) = (behind.bitmask(), some.bitmask());
+        let (x0, x1, y0, y1) = (x0.to_array(), x1.to_array(), y0.to_array(), y1.to_array());
+        std::array::from_fn(|l| {
+            let bit = 1 << l;
+            if behind & bit != 0 {
+                return [xs[0], xs[1], ys[0], ys[1]]
+                    .map(|v| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32);
+            }
+            // NaN and out-of-range values saturate (`some` is false for them).
+            let r = [x0[l], x1[l], y0[l], y1[l]].map(|v| v as i32);
+            if some & bit == 0 {
+                return [1, 0, 1, 0];
+            }
+            if tested.bitmask() & bit == 0 {
+                return r;
+            }
+            match (b0 & bit != 0, b1 & bit != 0) {
+                (true, true) => r,
+                (true, false) => [r[0], r[0], r[2], r[2]],
+                (false, true) => [r[1], r[1], r[3], r[3]],
+                (false, false) => [1, 0, 1, 0],
+            }
+        })
     }
 }
 
@@ -306,9 +350,10 @@ mod tests {
         assert!(PixelProjection::fit(Vec3::ZERO, 5, 5, nan).is_none());
     }
 
-    /// No triangle that some camera ray hits (through the shared triangle test) is culled,
-    /// exact or jittered rays; tiny triangles between pixel centres are culled (not vacuous);
-    /// the scalar and four-wide forms agree.
+    /// No triangle that some camera ray hits (through the shared triangle test) is culled, and
+    /// every such ray's pixel is in the triangle's rectangle, exact or jittered rays; tiny
+    /// triangles between pixel centres are culled and many rectangles are single pixels (not
+    /// vacuous); the scalar and four-wide forms agree.
     #[test]
     fn culled_triangles_are_hit_by_no_ray() {
         use crate::geom::intersect_triangle;
@@ -344,7 +389,7 @@ mod tests {
         let (xs, ys) = ([0, w as i64 - 1], [0, h as i64 - 1]);
         for rays in [&exact, &jittered] {
             let tol = tol_of(rays);
-            let (mut culled, mut hit) = (0, 0);
+            let (mut culled, mut hit, mut small) = (0, 0, 0);
             for _ in 0..600 {
                 let tri: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
                     let c = Vec3::new(
@@ -362,11 +407,14 @@ mod tests {
                     })
                 });
                 let keep = p.triangles_may_cover4(tri, tol, xs, ys);
+                let rects = p.triangle_rects4(tri, tol, xs, ys);
                 for l in 0..4 {
                     assert_eq!(keep[l], p.triangle_may_cover(tri[l], tol, xs, ys));
                     let [a, b, c2] = tri[l];
-                    let hits = (0..rays.len()).any(|k| {
-                        intersect_triangle(
+                    let [x0, x1, y0, y1] = rects[l].map(|v| v as usize);
+                    let mut hits = false;
+                    for k in 0..rays.len() {
+                        if intersect_triangle(
                             rays.origin(k),
                             rays.dir(k),
                             a,
@@ -376,7 +424,20 @@ mod tests {
                             f32::INFINITY,
                         )
                         .is_some()
-                    });
+                        {
+                            hits = true;
+                            // Every hitting ray's pixel is in the rectangle.
+                            let (i, j) = (k % w as usize, k / w as usize);
+                            assert!(
+                                (x0..=x1).contains(&i) && (y0..=y1).contains(&j),
+                                "ray {i},{j} hits {:?} outside {:?}",
+                                tri[l],
+                                rects[l]
+                            );
+                        }
+                    }
+                    small +=
+                        ((x1 + 1).saturating_sub(x0) * (y1 + 1).saturating_sub(y0) == 1) as usize;
                     assert!(
                         keep[l] || !hits,
                         "culled a triangle a ray hits: {:?}",
@@ -386,7 +447,10 @@ mod tests {
                     hit += hits as usize;
                 }
             }
-            assert!(culled > 300 && hit > 100, "culled {culled}, hit {hit}");
+            assert!(
+                culled > 300 && hit > 100 && small > 50,
+                "culled {culled}, hit {hit}, one-pixel rectangles {small}"
+            );
         }
     }
 

@@ -168,6 +168,15 @@ pub struct Config {
     /// samples; `geom::PixelProjection::triangle_may_cover`), when every ray of the task lies
     /// on its own pixel. Default true.
     pub pixel_cull: bool,
+    /// Camera batches (as `pixel_cull`): each triangle's pixel rectangle is kept, and the cone
+    /// recursion ends in tile leaves that test a triangle only against the live pixels of its
+    /// rectangle, with no ray list (`Task::tile_leaf`) instead of flushing the cones to rays.
+    /// Default true.
+    pub pixel_leaf: bool,
+    /// With tile leaves: a leaf when fewer active tiles than this (`c_limit`'s role; a tile
+    /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier).
+    /// Default 256.
+    pub pixel_leaf_c_limit: usize,
 }
 
 impl Default for Config {
@@ -187,6 +196,8 @@ impl Default for Config {
             flush_filter: true,
             screen_cull: true,
             pixel_cull: true,
+            pixel_leaf: true,
+            pixel_leaf_c_limit: 256,
         }
     }
 }
@@ -466,6 +477,15 @@ struct Task<'a, const ANY: bool> {
     perm: Vec<u64>,
     /// Terminated-cone pivot.
     cterm: usize,
+    /// Tile leaves (`Config::pixel_leaf`): the cone recursion ends in [`Task::tile_leaf`] and
+    /// there is no ray list. `rects[t]` is triangle `t`'s inclusive pixel rectangle
+    /// `[x0, x1, y0, y1]` (task-local rows); `touched[c]`, the pixels of tile `c` some triangle
+    /// of the current leaf hit, and `touched_list` the tiles with any (capacity: the tile
+    /// count, never exceeded). All empty otherwise.
+    tile_leaves: bool,
+    rects: Vec<[u16; 4]>,
+    touched: Vec<u64>,
+    touched_list: Vec<u32>,
     st: Stats,
 }
 
@@ -507,18 +527,25 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         n
     }
 
-    /// In-place filter of `tri_idx[..nt]`: keeps the triangles some pixel's ray of the task can
-    /// hit (`Config::pixel_cull`). Returns the new count.
-    fn cull_triangles(
+    /// Projects the triangles `tri_idx[..nt]` onto the task's pixels (rows `ys`): with `cull`
+    /// (`Config::pixel_cull`), filters the list in place to the triangles some pixel's ray of
+    /// the task can hit; with pixel leaves, records each one's rectangle in `rects`. Returns
+    /// the new count.
+    fn project_triangles(
         &mut self,
         nt: usize,
         proj: &PixelProjection,
         tol: f64,
-        xs: [i64; 2],
         ys: [i64; 2],
+        cull: bool,
     ) -> usize {
+        let Packets::Tiles { width, .. } = self.packets else {
+            return nt;
+        };
+        let xs = [0, width as i64 - 1];
         let tris = self.tris;
         let idx = &mut self.tri_idx[..nt];
+        let rects = &mut self.rects;
         let mut k = 0;
         // Four at a time (a short last group repeats its last triangle); the Lomuto partition
         // of `partition_rays` in each group, in order.
@@ -528,10 +555,20 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let t = idx[(p0 + l).min(nt - 1)] as usize;
                 *v = [tris.v0[t], tris.v1[t], tris.v2[t]];
             }
-            let keep = proj.triangles_may_cover4(v, tol, xs, ys);
-            for (l, &keep) in keep.iter().enumerate().take(nt - p0) {
+            let r = proj.triangle_rects4(v, tol, xs, ys);
+            for (l, &[x0, x1, y0, y1]) in r.iter().enumerate().take(nt - p0) {
+                let keep = x0 <= x1 && y0 <= y1;
+                if !rects.is_empty() {
+                    // Task-local rows; the ranges fit in u16 (checked when `rects` was made).
+                    let y = ys[0] as i32;
+                    rects[idx[p0 + l] as usize] = if keep {
+                        [x0, x1, y0 - y, y1 - y].map(|v| v as u16)
+                    } else {
+                        [1, 0, 1, 0]
+                    };
+                }
                 idx.swap(k, p0 + l);
-                k += keep as usize;
+                k += (keep || !cull) as usize;
             }
         }
         self.st.tri_box += nt as u64;
@@ -933,11 +970,16 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         if nc == 0 || nt == 0 {
             return;
         }
-        if nc < self.cfg.c_limit || nt < self.cfg.p_limit || depth >= self.cfg.max_depth {
-            return self.flush(cell, nt, cend, depth, ord);
+        let c_limit = if self.tile_leaves {
+            self.cfg.pixel_leaf_c_limit
+        } else {
+            self.cfg.c_limit
+        };
+        if nc < c_limit || nt < self.cfg.p_limit || depth >= self.cfg.max_depth {
+            return self.cone_leaf(cell, nt, cend, depth, ord);
         }
         let Some((axis, split)) = self.choose_split(&cell, nt) else {
-            return self.flush(cell, nt, cend, depth, ord);
+            return self.cone_leaf(cell, nt, cend, depth, ord);
         };
         let low_first = match self.view {
             View::From(p) => p[axis] <= split,
@@ -948,7 +990,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let child = half(&cell, axis, split, low_first);
         let (nt0, other) = self.partition_tris(nt, axis, split, low_first, &child);
         if nt0 == nt && other == nt {
-            return self.flush(cell, nt, cend, depth, ord);
+            return self.cone_leaf(cell, nt, cend, depth, ord);
         }
         let cend0 = self.partition_cones(&child, cend);
         let ord0 = ord.child(axis, split, true, low_first);
@@ -960,6 +1002,143 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let cend1 = gather_block(&mut self.cone_idx, k, cend0, cend);
         let ord1 = ord.child(axis, split, false, !low_first);
         self.cone_rec(child, nt1, cend1, depth + 1, ord1);
+    }
+
+    /// The end of a cone recursion: a tile leaf or FlushCones.
+    fn cone_leaf(&mut self, cell: Aabb, nt: usize, cend: usize, depth: u32, ord: Order) {
+        if self.tile_leaves {
+            let px = self.pixels(&cell);
+            return self.tile_leaf(&cell, nt, cend, px, ord);
+        }
+        self.flush(cell, nt, cend, depth, ord)
+    }
+
+    /// A leaf over tiles (`Config::pixel_leaf`, ours): each triangle is tested against the
+    /// live pixels of its rectangle ([`PixelProjection::triangle_rects4`] holds every pixel
+    /// whose ray can hit it) inside the cell's rectangle `px` (or, for a cell reaching behind
+    /// the eye, `None`, of the active tiles), read off the tiles' termination bits, with no
+    /// ray list. A ray that can end here has its final hit on a triangle of this cell, which
+    /// was tested against it and hit, so only the rays with a hit here are checked for
+    /// termination; [`closer`] makes the order of the pairs irrelevant.
+    fn tile_leaf(&mut self, cell: &Aabb, nt: usize, cend: usize, px: Option<[i64; 4]>, ord: Order) {
+        self.st.leaves += 1;
+        let Packets::Tiles { width, rows, tw } = self.packets else {
+            unreachable!("tile leaves are for pinhole tiles only")
+        };
+        let tris = self.tris;
+        let mut tests = 0u64;
+        // The cell's pixels, clamped to the task's (the triangles' are).
+        let (cx, cy) = match px {
+            Some(px) => (
+                [px[0].max(0), px[1].min(width as i64 - 1)],
+                [px[2].max(0), px[3].min(rows as i64 - 1)],
+            ),
+            None => ([0, width as i64 - 1], [0, rows as i64 - 1]),
+        };
+        for q in 0..nt {
+            let t = self.tri_idx[q] as usize;
+            let r = self.rects[t];
+            let x0 = (r[0] as i64).max(cx[0]);
+            let x1 = (r[1] as i64).min(cx[1]);
+            let y0 = (r[2] as i64).max(cy[0]);
+            let y1 = (r[3] as i64).min(cy[1]);
+            if x0 > x1 || y0 > y1 {
+                continue;
+            }
+            let rect = [x0, x1, y0, y1];
+            let (a, b, c) = (tris.v0[t], tris.v1[t], tris.v2[t]);
+            if px.is_some() {
+                // The tiles under the rectangle.
+                for ty in (y0 / 8) as usize..=(y1 / 8) as usize {
+                    for tx in (x0 / 8) as usize..=(x1 / 8) as usize {
+                        tests += self.tile_pairs(ty * tw + tx, rect, t as u32, [a, b, c]);
+                    }
+                }
+            } else {
+                // No rectangle for the cell: the tiles still active in it.
+                for q in self.cterm..cend {
+                    let tile = self.cone_idx[q] as usize;
+                    tests += self.tile_pairs(tile, rect, t as u32, [a, b, c]);
+                }
+            }
+        }
+        self.st.ray_tri += tests;
+        // Termination of the rays hit here.
+        let list = std::mem::take(&mut self.touched_list);
+        for &tile in &list {
+            let tile = tile as usize;
+            let (tx, ty) = (tile % tw, tile / tw);
+            let mut m = std::mem::take(&mut self.touched[tile]);
+            while m != 0 {
+                let bit = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
+                let done = ANY || {
+                    let i = self.base + k;
+                    let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+                    self.terminate && Self::final_hit(cell, o, d, tmin, self.t[k], &ord)
+                };
+                self.cones[tile].done |= (done as u64) << bit;
+            }
+        }
+        self.touched_list = list;
+        self.touched_list.clear();
+        let packets = self.packets;
+        let mut q = self.cterm;
+        while q < cend {
+            let c = self.cone_idx[q] as usize;
+            if self.cones[c].done == packets.full_mask(c, &[]) {
+                self.cone_idx.swap(q, self.cterm);
+                self.cterm += 1;
+            }
+            q += 1;
+        }
+    }
+
+    /// The pairs of a tile leaf between triangle `t = v` and the live pixels of `tile` inside
+    /// `rect`; marks the pixels hit in `touched`. Returns the number of pairs.
+    #[inline(always)]
+    fn tile_pairs(&mut self, tile: usize, rect: [i64; 4], t: u32, v: [Vec3; 3]) -> u64 {
+        let Packets::Tiles { width, tw, .. } = self.packets else {
+            return 0;
+        };
+        let (tx, ty) = (tile % tw, tile / tw);
+        let mut m = tile_mask(tx, ty, rect) & !self.cones[tile].done;
+        let n = m.count_ones() as u64;
+        while m != 0 {
+            let bit = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
+            if self.tile_pair(k, t, v[0], v[1], v[2]) {
+                if self.touched[tile] == 0 {
+                    self.touched_list.push(tile as u32);
+                }
+                self.touched[tile] |= 1 << bit;
+            }
+        }
+        n
+    }
+
+    /// One pair of a tile leaf: ray `k` against triangle `t = (a, b, c)`; true on a hit (the
+    /// closest so far or not).
+    #[inline(always)]
+    fn tile_pair(&mut self, k: usize, t: u32, a: Vec3, b: Vec3, c: Vec3) -> bool {
+        let i = self.base + k;
+        let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+        if ANY {
+            let hit = intersect_triangle(o, d, a, b, c, tmin, self.rays.tmax[i]).is_some();
+            self.occ[k] |= hit;
+            return hit;
+        }
+        match intersect_triangle(o, d, a, b, c, tmin, self.t[k]) {
+            Some(h) => {
+                if closer(h.t, t, self.t[k], self.prim[k]) {
+                    (self.t[k], self.prim[k], self.u[k], self.v[k]) = (h.t, t, h.u, h.v);
+                }
+                true
+            }
+            None => false,
+        }
     }
 
     /// FlushCones (Algorithm 2): the active cones' live rays that enter `cell` go to the ray
@@ -1285,8 +1464,8 @@ impl Dacrt {
             v,
             occ,
             tri_idx: (0..ntri as u32).collect(),
-            ray_idx: vec![0u32; len],
-            recs: vec![RayRec::default(); len],
+            ray_idx: Vec::new(),
+            recs: Vec::new(),
             rterm: 0,
             terminate: plan.terminate,
             view: plan.view,
@@ -1309,11 +1488,13 @@ impl Dacrt {
                 _ => Vec::new(),
             },
             cterm: 0,
+            tile_leaves: false,
+            rects: Vec::new(),
+            touched: Vec::new(),
+            touched_list: Vec::new(),
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        task.st.peak_bytes =
-            (4 * ntri + 36 * len + CONE_BYTES * ncones + 8 * task.perm.len()) as u64;
         if !ANY {
             for k in 0..len {
                 task.t[k] = rays.tmax[range.start + k];
@@ -1357,13 +1538,31 @@ impl Dacrt {
                     // never be tested, and are not built (see `partition_cones`).
                     task.cones_built = task.pixels(&scene.bounds()).is_none();
                 }
-                if self.cfg.pixel_cull {
+                if self.cfg.pixel_leaf && width <= 1 << 16 && rows <= 1 << 16 {
+                    task.tile_leaves = true;
+                    task.rects = vec![[0; 4]; ntri];
+                    task.touched = vec![0; ncones];
+                    task.touched_list = Vec::with_capacity(ncones);
+                }
+                if self.cfg.pixel_cull || task.tile_leaves {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
-                    cull = Some((proj, tol, [0, width as i64 - 1], ys));
+                    cull = Some((proj, tol, ys, self.cfg.pixel_cull));
                 }
             }
         }
-        // Packets first: coherent ones become cones, the rays of the others go to the ray list.
+        if !task.tile_leaves {
+            task.ray_idx = vec![0u32; len];
+            task.recs = vec![RayRec::default(); len];
+        }
+        task.st.peak_bytes = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
+            + if task.tile_leaves {
+                (8 * ntri + 12 * ncones) as u64
+            } else {
+                36 * len as u64
+            };
+        // Packets first: coherent ones become cones, the rays of the others go to the ray list
+        // (with tile leaves, which need no cones to be correct, they stay tiles with a cone
+        // that meets every box).
         let mut rend = 0;
         for c in 0..ncones {
             if !task.cones_built {
@@ -1373,6 +1572,10 @@ impl Dacrt {
             match task.build_cone(c, max_angle) {
                 Some(cone) => {
                     task.cones[c] = cone;
+                    task.cone_idx.push(c as u32);
+                }
+                None if task.tile_leaves => {
+                    task.cones[c].q = ConeQuery::new(Vec3::Z, 0.0, f32::INFINITY, f32::INFINITY);
                     task.cone_idx.push(c as u32);
                 }
                 None => {
@@ -1394,8 +1597,8 @@ impl Dacrt {
         // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root.
         let rend = task.partition_rays(&root, rend);
         let mut nlive = task.live_triangles();
-        if let Some((proj, tol, xs, ys)) = cull {
-            nlive = task.cull_triangles(nlive, &proj, tol, xs, ys);
+        if let Some((proj, tol, ys, cull)) = cull {
+            nlive = task.project_triangles(nlive, &proj, tol, ys, cull);
         }
         task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
         if !task.cone_idx.is_empty() {
