@@ -137,8 +137,9 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 // (36 bytes per ray), and for packets 68
                 // bytes per 8×8 tile or per 64 shadow rays (here R/64 either way), plus the
                 // shadow rays' 8-byte Morton order. Camera packets end in tile leaves: no ray
-                // list, but each task's 8-byte pixel rectangle per triangle and 12 bytes per
-                // tile (its pixels hit in a leaf, and a list of such tiles).
+                // list, but each task's 8-byte pixel rectangle per triangle and per tile 1036
+                // bytes (its 64 rays' 16-byte records, the pixels hit in a leaf, a list of
+                // such tiles).
                 let cones = if mode == "packet" || mode == "shadow" {
                     r / 64
                 } else {
@@ -146,7 +147,7 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 };
                 let order = if mode == "shadow" { 8 * r } else { 0 };
                 let want = if mode == "packet" {
-                    (4 + 8) * t * tasks + (68 + 12) * cones
+                    (4 + 8) * t * tasks + (68 + 1036) * cones
                 } else {
                     4 * t * tasks + 36 * r + 68 * cones + order
                 };
