@@ -1,8 +1,10 @@
 //! Fig. 8 of Mora 2011 for raysift's `dacrt`: counters and times for Basic (ray mode), Conic
 //! packets and Conic + 1 light (shadow rays to a point light), on a scene spec, camera rays from
-//! `Camera::framing`. Two versions of the packet rows: the paper's (camera tiles bounded by
-//! cones, shadow rays in light cones: `screen_cull=false pixel_cull=false max_shadow_cone_deg=1`)
-//! and raysift's defaults (screen-space and pixel culling, shadow rays traced as rays).
+//! `Camera::framing`. Three versions of the packet rows: the paper's (camera tiles bounded by
+//! cones and flushed to rays, shadow rays in light cones: `screen_cull=false pixel_cull=false
+//! pixel_leaf=false max_shadow_cone_deg=1`), screen-space and pixel culling with the paper's
+//! flushes (`pixel_leaf=false`), and raysift's defaults (the same culling ending in tile
+//! leaves); shadow rays are traced as rays in the last two.
 //!
 //! `cargo run --release -p raysift --example dacrt_counts -- sphere:1000000 [W H] [key=value ...]`
 //! (options are passed to every dacrt run; `naive=1` also times the brute-force tracer on a
@@ -85,6 +87,7 @@ fn main() {
                 ("mode", "packet"),
                 ("screen_cull", "false"),
                 ("pixel_cull", "false"),
+                ("pixel_leaf", "false"),
                 ("max_shadow_cone_deg", "1"),
             ],
         ),
@@ -96,6 +99,19 @@ fn main() {
                 ("mode", "packet"),
                 ("screen_cull", "true"),
                 ("pixel_cull", "true"),
+                ("pixel_leaf", "false"),
+                ("max_shadow_cone_deg", "0"),
+            ],
+        ),
+        (
+            "Tile leaves",
+            "Tiles + 1 light",
+            "(shadow rays)",
+            [
+                ("mode", "packet"),
+                ("screen_cull", "true"),
+                ("pixel_cull", "true"),
+                ("pixel_leaf", "true"),
                 ("max_shadow_cone_deg", "0"),
             ],
         ),

@@ -55,6 +55,16 @@
 //!   thirds of the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 37M; its
 //!   frame through the harness went from 827 to 573 ms with this and the cone skip above),
 //!   a third of the 871K dragon (about even there: the cull costs what it saves).
+//! - **Tile leaves** (ours, `Config::pixel_leaf`): the same projection gives every triangle
+//!   its pixel rectangle (`rects`), and the cone recursion ends, instead of flushing its
+//!   tiles' rays into Algorithm 1, in a leaf that tests each triangle against the live pixels
+//!   of its rectangle inside the cell's (`Task::tile_leaf`), read off the tiles' termination
+//!   bits. A camera batch then needs no ray list at all: the rays are kept in tile order, one
+//!   16-byte record each (direction and z-buffer). The leaf costs about one rectangle check
+//!   per triangle plus the pairs, not rays × triangles, so leaves are large (fewer than
+//!   `pixel_leaf_c_limit` = 256 live tiles). Front-to-back termination still works per pixel.
+//!   Dragon, 1024²: ray/triangle tests 27.4M → 2.5M (the BVH does 2.7M), triangle/box 19.3M
+//!   → 7.3M, trace 383 → about 170 ms (BENCHMARKS.md).
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
 //!   any-hit: every hit terminates its ray, in every mode.
@@ -76,16 +86,20 @@
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
 //! - held between calls ([`Tracer::bytes`]): `24·T` (per axis, each triangle's `[min, max]`);
 //! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
-//!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`) and, in packet
-//!   mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
+//!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`; not with tile leaves)
+//!   and, in packet mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
 //!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
 //!   the bands are whole tile rows) and, for shadow rays when shadow packets are on
 //!   (`max_shadow_cone_deg > 0`), `68·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
-//!   rays that groups them into compact packets).
+//!   rays that groups them into compact packets). Camera batches with tile leaves (every
+//!   ray from the eye within 2 pixels of its pixel, one `tmin`) have no ray list but
+//!   `8·T·K` (pixel rectangles) and, per tile, 1036 bytes besides its cone: 64 ray records of
+//!   16 bytes, and 12 for the leaves' bookkeeping.
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
-//! `b = 36` (ray and random modes, and shadow rays by default), `37.0625` (camera packets, full
-//! tiles), `45.0625` (shadow packets, task shares multiple of 64 rays). These are total bytes
+//! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
+//! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 24 +
+//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false`). These are total bytes
 //! allocated per call, so also a bound on the peak; `Stats::peak_bytes` reports the largest
 //! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
 //! counting allocator. Screen-space and pixel culling allocate nothing.
