@@ -1,7 +1,8 @@
 //! DACRT's memory is deterministic (Mora 2011, §1 and §3.2): the bytes the tracer allocates are
 //! a linear function `a·T + b·R + c` of the triangle and ray counts, identical between runs and
 //! independent of the scene's shape. Checked with a counting global allocator on two very
-//! different scenes of equal size (a random soup and an icosphere), in every mode.
+//! different scenes of equal size (a random soup and an icosphere), in every mode. The buffers of
+//! a call stay with the tracer: later calls of the same size allocate nothing.
 
 use raysift::rays::generate::random_in_box;
 use raysift::rays::{Camera, RayLayout};
@@ -54,8 +55,13 @@ fn measure(f: impl FnOnce()) -> (usize, usize) {
 
 struct Case {
     prepare: usize,
+    /// First calls of fresh tracers.
     intersect: (usize, usize),
     occluded: (usize, usize),
+    /// An occlusion call after the intersection call on the same tracer (buffers reused), and
+    /// the bytes that tracer then holds.
+    again: usize,
+    held: usize,
 }
 
 fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &str) -> Case {
@@ -78,6 +84,12 @@ fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg
     let intersect = measure(|| {
         d.intersect(rays, &mut hits);
     });
+    let (again, _) = measure(|| {
+        d.occluded(rays, &mut occ);
+    });
+    let held = d.bytes();
+    let mut d = tracers::create("dacrt", &opts).unwrap();
+    d.prepare(scene.clone()).unwrap();
     let occluded = measure(|| {
         d.occluded(rays, &mut occ);
     });
@@ -85,6 +97,8 @@ fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg
         prepare,
         intersect,
         occluded,
+        again,
+        held,
     }
 }
 
@@ -154,6 +168,10 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 assert_eq!(c.intersect.0, want, "intersect {mode} tasks {tasks}");
                 assert_eq!(c.occluded.0, want, "occluded {mode} tasks {tasks}");
                 assert!(c.intersect.1 <= want && c.occluded.1 <= want);
+                // The buffers stay with the tracer: a second call of the same size allocates
+                // nothing, and the tracer holds the min/max lists plus one call's buffers.
+                assert_eq!(c.again, 0, "second call {mode} tasks {tasks}");
+                assert_eq!(c.held, 24 * t + want, "held {mode} tasks {tasks}");
                 seen.push((mode, c.intersect.0));
             }
         }

@@ -84,8 +84,9 @@
 //! is conservative (the z-buffer cut and box exits are widened by the shared rounding slack).
 //!
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
-//! - held between calls ([`Tracer::bytes`]): `24·T` (per axis, each triangle's `[min, max]`);
-//! - per call, for `K` tasks: `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
+//! - made by prepare: `24·T` (per axis, each triangle's `[min, max]`);
+//! - per call, for `K` tasks (kept by the tracer afterwards, so that a call allocates only what
+//!   earlier calls did not: a dynamic scene's frames allocate nothing after the first): `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
 //!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`; not with tile leaves)
 //!   and, in packet mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
 //!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
@@ -99,10 +100,12 @@
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
 //! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 24 +
-//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false`). These are total bytes
-//! allocated per call, so also a bound on the peak; `Stats::peak_bytes` reports the largest
+//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false`). These are the bytes a
+//! first call allocates, so also a bound on its peak, and what the tracer then holds
+//! ([`Tracer::bytes`]: `24·T` plus the kept buffers); `Stats::peak_bytes` reports the largest
 //! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
-//! counting allocator. Screen-space and pixel culling allocate nothing.
+//! counting allocator, and that a second call allocates nothing. Screen-space and pixel
+//! culling allocate nothing.
 
 use crate::error::Result;
 use crate::geom::{
@@ -115,7 +118,7 @@ use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer}
 use glam::{Vec3, Vec4};
 use serde::Deserialize;
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// Which recursion to run.
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -226,6 +229,54 @@ pub struct Dacrt {
     /// Degenerate triangles get `lo = +inf, hi = -inf` so the first split drops them (exact:
     /// the shared triangle test never hits them).
     span: [Vec<[f32; 2]>; 3],
+    /// The tasks' index lists and buffers, kept between calls: a call allocates (and the OS
+    /// maps, page by page) only what earlier calls did not (on the 871K dragon at 1024², fresh
+    /// buffers cost a sixth of a frame in page faults). Reserved for [`MAX_POOLED`] tasks at
+    /// creation, so calls allocate nothing else.
+    pool: Mutex<Vec<Scratch>>,
+}
+
+/// Tasks whose buffers the pool keeps without growing.
+const MAX_POOLED: usize = 64;
+
+/// One task's buffers (see [`Task`] for their roles), between calls.
+#[derive(Default)]
+struct Scratch {
+    tri_idx: Vec<u32>,
+    ray_idx: Vec<u32>,
+    recs: Vec<RayRec>,
+    cones: Vec<PackedCone>,
+    cone_idx: Vec<u32>,
+    perm: Vec<u64>,
+    rects: Vec<[u16; 4]>,
+    tile_rays: Vec<Vec4>,
+    touched: Vec<u64>,
+    touched_list: Vec<u32>,
+}
+
+impl Scratch {
+    fn bytes(&self) -> usize {
+        fn b<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        b(&self.tri_idx)
+            + b(&self.ray_idx)
+            + b(&self.recs)
+            + b(&self.cones)
+            + b(&self.cone_idx)
+            + b(&self.perm)
+            + b(&self.rects)
+            + b(&self.tile_rays)
+            + b(&self.touched)
+            + b(&self.touched_list)
+    }
+}
+
+/// `v`, emptied, with room for `n` (allocating exactly `n` when it has less room).
+fn reuse<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
+    v.clear();
+    v.reserve_exact(n);
+    v
 }
 
 impl Dacrt {
@@ -235,6 +286,7 @@ impl Dacrt {
             cfg,
             scene: None,
             span: Default::default(),
+            pool: Mutex::new(Vec::with_capacity(MAX_POOLED)),
         }
     }
 
@@ -1315,7 +1367,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 /// The shadow-packet order of rays `range` (see [`Task::perm`]): sorted by a 30-bit Morton code
 /// of the origin in `bounds` (in place, no further allocation), then each entry's high half is
 /// overwritten with the inverse permutation.
-fn morton_order(rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64> {
+fn morton_order(mut v: Vec<u64>, rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64> {
     fn spread(x: u32) -> u64 {
         let mut x = (x & 0x3ff) as u64;
         x = (x | x << 16) & 0x0300_00ff;
@@ -1324,15 +1376,13 @@ fn morton_order(rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64>
         (x | x << 2) & 0x0924_9249
     }
     let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
-    let mut v: Vec<u64> = range
-        .clone()
-        .enumerate()
-        .map(|(k, i)| {
-            let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
-            let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
-            code << 32 | k as u64
-        })
-        .collect();
+    v.clear();
+    v.reserve_exact(range.len());
+    v.extend(range.clone().enumerate().map(|(k, i)| {
+        let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
+        let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
+        code << 32 | k as u64
+    }));
     v.sort_unstable();
     for j in 0..v.len() {
         let k = v[j] as u32 as usize;
@@ -1380,6 +1430,33 @@ fn prefetch<T>(v: &[T], i: usize) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = (v, i);
+}
+
+/// `v` filled with the rays of the `width × rows` band starting at ray `base`, in tile order
+/// (slot `64·tile + bit`): direction and `tmax` (zero records pad the tiles of a short band).
+fn tile_ordered_rays(
+    mut v: Vec<Vec4>,
+    rays: &RayBatch,
+    base: usize,
+    width: usize,
+    rows: usize,
+) -> Vec<Vec4> {
+    v.clear();
+    v.reserve_exact(width.div_ceil(8) * rows.div_ceil(8) * 64);
+    for ty in 0..rows.div_ceil(8) {
+        for tx in 0..width.div_ceil(8) {
+            for bit in 0..64 {
+                let (x, y) = (tx * 8 + bit % 8, ty * 8 + bit / 8);
+                v.push(if x < width && y < rows {
+                    let i = base + y * width + x;
+                    rays.dir(i).extend(rays.tmax[i])
+                } else {
+                    Vec4::ZERO
+                });
+            }
+        }
+    }
+    v
 }
 
 /// Calls `f(k, j)` for every pixel of a `width × rows` band: `k` its index in the band (row
@@ -1514,6 +1591,22 @@ impl Dacrt {
             View::Majority => Vec3::ZERO,
         };
         let ncones = packets.count();
+        let sc = self.pool.lock().map(|mut p| p.pop()).ok().flatten();
+        let sc = sc.unwrap_or_default();
+        let mut tri_idx = reuse(sc.tri_idx, ntri);
+        tri_idx.extend(0..ntri as u32);
+        let mut cones = reuse(sc.cones, ncones);
+        cones.resize(
+            ncones,
+            PackedCone {
+                q: ConeQuery::default(),
+                done: 0,
+            },
+        );
+        let mut perm = reuse(sc.perm, 0);
+        if let Packets::Runs { .. } = packets {
+            perm = morton_order(perm, rays, range.clone(), &scene.bounds());
+        }
         let mut task = Task::<ANY> {
             cfg: &self.cfg,
             tris: scene.triangles(),
@@ -1525,9 +1618,9 @@ impl Dacrt {
             u,
             v,
             occ,
-            tri_idx: (0..ntri as u32).collect(),
-            ray_idx: Vec::new(),
-            recs: Vec::new(),
+            tri_idx,
+            ray_idx: reuse(sc.ray_idx, 0),
+            recs: reuse(sc.recs, 0),
             rterm: 0,
             terminate: plan.terminate,
             view: plan.view,
@@ -1537,25 +1630,16 @@ impl Dacrt {
             tol: 0.0,
             row0: 0,
             cones_built: true,
-            cones: vec![
-                PackedCone {
-                    q: ConeQuery::default(),
-                    done: 0
-                };
-                ncones
-            ],
-            cone_idx: Vec::with_capacity(ncones),
-            perm: match packets {
-                Packets::Runs { .. } => morton_order(rays, range.clone(), &scene.bounds()),
-                _ => Vec::new(),
-            },
+            cones,
+            cone_idx: reuse(sc.cone_idx, ncones),
+            perm,
             cterm: 0,
             tile_leaves: false,
-            rects: Vec::new(),
-            tile_rays: Vec::new(),
+            rects: reuse(sc.rects, 0),
+            tile_rays: reuse(sc.tile_rays, 0),
             tmin0: 0.0,
-            touched: Vec::new(),
-            touched_list: Vec::new(),
+            touched: reuse(sc.touched, 0),
+            touched_list: reuse(sc.touched_list, 0),
             st: Stats::default(),
         };
         task.st.rays = len as u64;
@@ -1607,14 +1691,14 @@ impl Dacrt {
                 if self.cfg.pixel_leaf && uniform && width <= 1 << 16 && rows <= 1 << 16 {
                     task.tile_leaves = true;
                     task.tmin0 = tmin0;
-                    task.tile_rays = vec![Vec4::ZERO; 64 * ncones];
-                    for_each_tile_slot(width, rows, |k, j| {
-                        let i = range.start + k;
-                        task.tile_rays[j] = rays.dir(i).extend(rays.tmax[i]);
-                    });
-                    task.rects = vec![[0; 4]; ntri];
-                    task.touched = vec![0; ncones];
-                    task.touched_list = Vec::with_capacity(ncones);
+                    let tr = std::mem::take(&mut task.tile_rays);
+                    task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
+                    task.rects = std::mem::take(&mut task.rects);
+                    task.rects.reserve_exact(ntri);
+                    task.rects.resize(ntri, [0; 4]);
+                    task.touched.reserve_exact(ncones);
+                    task.touched.resize(ncones, 0);
+                    task.touched_list.reserve_exact(ncones);
                 }
                 if self.cfg.pixel_cull || task.tile_leaves {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
@@ -1623,8 +1707,10 @@ impl Dacrt {
             }
         }
         if !task.tile_leaves {
-            task.ray_idx = vec![0u32; len];
-            task.recs = vec![RayRec::default(); len];
+            task.ray_idx.reserve_exact(len);
+            task.ray_idx.resize(len, 0);
+            task.recs.reserve_exact(len);
+            task.recs.resize(len, RayRec::default());
         }
         task.st.peak_bytes = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
             + if task.tile_leaves {
@@ -1694,7 +1780,37 @@ impl Dacrt {
                 }
             }
         }
-        task.st
+        let Task {
+            st,
+            tri_idx,
+            ray_idx,
+            recs,
+            cones,
+            cone_idx,
+            perm,
+            rects,
+            tile_rays,
+            touched,
+            touched_list,
+            ..
+        } = task;
+        if let Ok(mut pool) = self.pool.lock() {
+            if pool.len() < pool.capacity() {
+                pool.push(Scratch {
+                    tri_idx,
+                    ray_idx,
+                    recs,
+                    cones,
+                    cone_idx,
+                    perm,
+                    rects,
+                    tile_rays,
+                    touched,
+                    touched_list,
+                });
+            }
+        }
+        st
     }
 }
 
@@ -1787,7 +1903,11 @@ impl Tracer for Dacrt {
     }
 
     fn bytes(&self) -> usize {
-        self.span.iter().map(|v| v.capacity() * 8).sum()
+        let pool = self
+            .pool
+            .lock()
+            .map_or(0, |p| p.iter().map(Scratch::bytes).sum());
+        self.span.iter().map(|v| v.capacity() * 8).sum::<usize>() + pool
     }
 }
 
@@ -1856,7 +1976,12 @@ mod tests {
     #[test]
     fn packet_maps_are_inverse() {
         let rays = crate::rays::generate::random_in_box(&Aabb::new(Vec3::ZERO, Vec3::ONE), 1000, 1);
-        let perm = morton_order(&rays, 0..1000, &Aabb::new(Vec3::ZERO, Vec3::ONE));
+        let perm = morton_order(
+            Vec::new(),
+            &rays,
+            0..1000,
+            &Aabb::new(Vec3::ZERO, Vec3::ONE),
+        );
         for (packets, n) in [
             (
                 Packets::Tiles {
@@ -1883,11 +2008,7 @@ mod tests {
         }
         // Tile-order slots agree with the packet map, row by row.
         let (width, rows) = (37, 27);
-        let packets = Packets::Tiles {
-            width,
-            rows,
-            tw: 5,
-        };
+        let packets = Packets::Tiles { width, rows, tw: 5 };
         let mut next = 0;
         for_each_tile_slot(width, rows, |k, j| {
             assert_eq!(k, next);
