@@ -21,7 +21,7 @@ pub use projection::PixelProjection;
 pub use shapes::{Cone, Plane, Sphere};
 pub use slab::{BoxPair, SlabRay};
 pub use triangle::{intersect_triangle, TriHit};
-pub use triangle4::{intersect_triangle4, Hit4, Tri4};
+pub use triangle4::{intersect_triangle4, Hit4, Tri4, TriFromOrigin};
 pub use tribox::{tri_box_edge_axes, tri_box_overlap};
 
 /// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the

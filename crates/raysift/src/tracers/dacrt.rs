@@ -110,7 +110,7 @@
 use crate::error::Result;
 use crate::geom::{
     intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, ConeQuery, PackedRay,
-    PixelProjection, Tri4,
+    PixelProjection, Tri4, TriFromOrigin,
 };
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
@@ -1127,19 +1127,19 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 continue;
             }
             let rect = [x0, x1, y0, y1];
-            let (a, b, c) = (tris.v0[t], tris.v1[t], tris.v2[t]);
+            let tri = TriFromOrigin::new(self.apex, tris.v0[t], tris.v1[t], tris.v2[t]);
             if px.is_some() {
                 // The tiles under the rectangle.
                 for ty in (y0 / 8) as usize..=(y1 / 8) as usize {
                     for tx in (x0 / 8) as usize..=(x1 / 8) as usize {
-                        tests += self.tile_pairs(ty * tw + tx, rect, t as u32, [a, b, c]);
+                        tests += self.tile_pairs(ty * tw + tx, rect, t as u32, &tri);
                     }
                 }
             } else {
                 // No rectangle for the cell: the tiles still active in it.
                 for q in self.cterm..cend {
                     let tile = self.cone_idx[q] as usize;
-                    tests += self.tile_pairs(tile, rect, t as u32, [a, b, c]);
+                    tests += self.tile_pairs(tile, rect, t as u32, &tri);
                 }
             }
         }
@@ -1174,10 +1174,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
     }
 
-    /// The pairs of a tile leaf between triangle `t = v` and the live pixels of `tile` inside
-    /// `rect`; marks the pixels hit in `touched`. Returns the number of pairs.
+    /// The pairs of a tile leaf between triangle `t` (`tri`, seen from the eye, where every ray
+    /// of the task starts, at `tmin0`: checked at set-up) and the live pixels of `tile` inside
+    /// `rect`, four at a time; marks the pixels hit in `touched`. Returns the number of pairs.
     #[inline(always)]
-    fn tile_pairs(&mut self, tile: usize, rect: [i64; 4], t: u32, v: [Vec3; 3]) -> u64 {
+    fn tile_pairs(&mut self, tile: usize, rect: [i64; 4], t: u32, tri: &TriFromOrigin) -> u64 {
         let Packets::Tiles { width, tw, .. } = self.packets else {
             return 0;
         };
@@ -1185,10 +1186,30 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut m = tile_mask(tx, ty, rect) & !self.cones[tile].done;
         let n = m.count_ones() as u64;
         while m != 0 {
-            let bit = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
-            if self.tile_pair(tile * 64 + bit, k, t, v) {
+            // Up to four pixels; missing lanes repeat the first (their results are ignored).
+            let mut bits = [m.trailing_zeros() as usize; 4];
+            let mut lanes = 0;
+            while m != 0 && lanes < 4 {
+                bits[lanes] = m.trailing_zeros() as usize;
+                m &= m - 1;
+                lanes += 1;
+            }
+            let recs = bits.map(|b| self.tile_rays[tile * 64 + b]);
+            let d = [0, 1, 2].map(|a| Vec4::from_array(recs.map(|r| r[a])));
+            let cut = Vec4::from_array(recs.map(|r| r.w));
+            let h = tri.intersect4(d, self.tmin0, cut);
+            let mut hit = h.mask & ((1 << lanes) - 1);
+            while hit != 0 {
+                let l = hit.trailing_zeros() as usize;
+                hit &= hit - 1;
+                let bit = bits[l];
+                let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
+                if ANY {
+                    self.occ[k] = true;
+                } else if closer(h.t[l], t, recs[l].w, self.prim[k]) {
+                    self.tile_rays[tile * 64 + bit].w = h.t[l];
+                    (self.prim[k], self.u[k], self.v[k]) = (t, h.u[l], h.v[l]);
+                }
                 if self.touched[tile] == 0 {
                     self.touched_list.push(tile as u32);
                 }
@@ -1196,27 +1217,6 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             }
         }
         n
-    }
-
-    /// One pair of a tile leaf: the ray in `tile_rays[j]` (local ray `k`) against triangle
-    /// `t = v`; true on a hit (the closest so far or not).
-    #[inline(always)]
-    fn tile_pair(&mut self, j: usize, k: usize, t: u32, [a, b, c]: [Vec3; 3]) -> bool {
-        // Every ray of a tile-leaf task starts at the eye at `tmin0` (checked at set-up).
-        let rec = self.tile_rays[j];
-        let (d, cut) = (rec.truncate(), rec.w);
-        match intersect_triangle(self.apex, d, a, b, c, self.tmin0, cut) {
-            Some(h) => {
-                if ANY {
-                    self.occ[k] = true;
-                } else if closer(h.t, t, cut, self.prim[k]) {
-                    self.tile_rays[j].w = h.t;
-                    (self.prim[k], self.u[k], self.v[k]) = (t, h.u, h.v);
-                }
-                true
-            }
-            None => false,
-        }
     }
 
     /// FlushCones (Algorithm 2): the active cones' live rays that enter `cell` go to the ray
