@@ -1647,11 +1647,6 @@ impl Dacrt {
             st: Stats::default(),
         };
         task.st.rays = len as u64;
-        if !ANY {
-            for k in 0..len {
-                task.t[k] = rays.tmax[range.start + k];
-            }
-        }
         let root = scene.bounds();
         let max_angle = match packets {
             Packets::Runs { .. } => self.cfg.max_shadow_cone_deg,
@@ -1668,19 +1663,22 @@ impl Dacrt {
             // Exact pinhole rays pass a fixed tolerance without a division per ray; otherwise
             // the largest deviation is measured.
             let mut tol = 1.0 / 256.0;
-            for k in 0..len {
-                let i = range.start + k;
-                from_eye &= rays.origin(i) == apex && rays.tmin[i] >= 0.0;
-                if !proj.within(rays.dir(i), k % width, row0 + k / width, tol) {
-                    tol = -1.0;
+            for (y, row) in range.clone().step_by(width).enumerate() {
+                for (x, i) in (row..row + width).enumerate() {
+                    from_eye &= rays.origin(i) == apex && rays.tmin[i] >= 0.0;
+                    if !proj.within(rays.dir(i), x, row0 + y, tol) {
+                        tol = -1.0;
+                    }
                 }
             }
             if tol < 0.0 {
                 tol = 0.0;
-                for k in 0..len {
-                    let e = proj.deviation(rays.dir(range.start + k), k % width, row0 + k / width);
-                    // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
-                    tol = if e > tol || e.is_nan() { e } else { tol };
+                for (y, row) in range.clone().step_by(width).enumerate() {
+                    for (x, i) in (row..row + width).enumerate() {
+                        let e = proj.deviation(rays.dir(i), x, row0 + y);
+                        // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
+                        tol = if e > tol || e.is_nan() { e } else { tol };
+                    }
                 }
             }
             if from_eye && tol <= MAX_PIXEL_DEVIATION {
@@ -1708,6 +1706,12 @@ impl Dacrt {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
                     cull = Some((proj, tol, ys, self.cfg.pixel_cull));
                 }
+            }
+        }
+        if !ANY && !task.tile_leaves {
+            // The z-buffer starts at `tmax` (tile leaves keep theirs in `tile_rays`).
+            for k in 0..len {
+                task.t[k] = rays.tmax[range.start + k];
             }
         }
         if !task.tile_leaves {
@@ -1775,9 +1779,14 @@ impl Dacrt {
             let Packets::Tiles { width, rows, .. } = packets else {
                 unreachable!("tile leaves are for pinhole tiles only")
             };
-            for_each_tile_slot(width, rows, |k, j| task.t[k] = task.tile_rays[j].w);
-        }
-        if !ANY {
+            for_each_tile_slot(width, rows, |k, j| {
+                task.t[k] = if task.prim[k] == MISS {
+                    f32::INFINITY
+                } else {
+                    task.tile_rays[j].w
+                };
+            });
+        } else if !ANY {
             for k in 0..len {
                 if task.prim[k] == MISS {
                     task.t[k] = f32::INFINITY;
