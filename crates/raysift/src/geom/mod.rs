@@ -17,7 +17,7 @@ pub mod tribox;
 pub use aabb::{Aabb, PackedRay};
 pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
-pub use projection::PixelProjection;
+pub use projection::{PixelProjection, RectLanes};
 pub use shapes::{Cone, Plane, Sphere};
 pub use slab::{BoxPair, SlabRay};
 pub use triangle::{intersect_triangle, TriHit};

@@ -173,8 +173,8 @@ impl PixelProjection {
         xs: [i64; 2],
         ys: [i64; 2],
     ) -> [bool; 4] {
-        self.triangle_rects4(tri, tol, xs, ys)
-            .map(|[x0, x1, y0, y1]| x0 <= x1 && y0 <= y1)
+        let m = self.triangle_rects_lanes(tri, tol, xs, ys).nonempty();
+        std::array::from_fn(|l| m >> l & 1 != 0)
     }
 
     /// For four triangles, the pixels `(i, j)` of the ranges `xs`, `ys` whose rays (from the eye,
@@ -190,6 +190,26 @@ impl PixelProjection {
         xs: [i64; 2],
         ys: [i64; 2],
     ) -> [[i32; 4]; 4] {
+        let r = self.triangle_rects_lanes(tri, tol, xs, ys);
+        std::array::from_fn(|l| {
+            if r.behind >> l & 1 != 0 {
+                [xs[0], xs[1], ys[0], ys[1]]
+                    .map(|v| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32)
+            } else {
+                r.lane(l).map(|v| v as i32)
+            }
+        })
+    }
+
+    /// [`Self::triangle_rects4`] as four lanes, without leaving SIMD registers: the form the
+    /// tracers' projection loops use.
+    pub fn triangle_rects_lanes(
+        &self,
+        tri: [[Vec3; 3]; 4],
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+    ) -> RectLanes {
         // In f32, with a rounding bound per vertex: `w = v − eye`, `u = H·w` (f32 copy of H)
         // differ from the exact `H·(v − eye)` by at most γ·(row 1-norm of H)·max|w| per
         // coordinate, γ = 8ε being over twice the γ₆ of these operations (including the
@@ -260,35 +280,53 @@ impl PixelProjection {
             in1 &= s1.cmpge(Vec4::ZERO) | (s1 * s1).cmple(r2);
         }
         // Lanes whose one or two candidates were edge-tested keep those that passed (the two
-        // candidates of a two-pixel rectangle are its ends).
+        // candidates of a two-pixel rectangle are its ends); lanes without a candidate, or
+        // whose candidates all failed, are empty `(1, 0, 1, 0)`; lanes behind, the ranges.
         let tested = some & few & !thin;
-        let (b0, b1) = (
-            tested.bitmask() & in0.bitmask(),
-            tested.bitmask() & in1.bitmask(),
-        );
-        let (behind, some) = (behind.bitmask(), some.bitmask());
-        let (x0, x1, y0, y1) = (x0.to_array(), x1.to_array(), y0.to_array(), y1.to_array());
-        std::array::from_fn(|l| {
-            let bit = 1 << l;
-            if behind & bit != 0 {
-                return [xs[0], xs[1], ys[0], ys[1]]
-                    .map(|v| v.clamp(i32::MIN as i64, i32::MAX as i64) as i32);
-            }
-            // NaN and out-of-range values saturate (`some` is false for them).
-            let r = [x0[l], x1[l], y0[l], y1[l]].map(|v| v as i32);
-            if some & bit == 0 {
-                return [1, 0, 1, 0];
-            }
-            if tested.bitmask() & bit == 0 {
-                return r;
-            }
-            match (b0 & bit != 0, b1 & bit != 0) {
-                (true, true) => r,
-                (true, false) => [r[0], r[0], r[2], r[2]],
-                (false, true) => [r[1], r[1], r[3], r[3]],
-                (false, false) => [1, 0, 1, 0],
-            }
-        })
+        let only0 = tested & in0 & !in1;
+        let only1 = tested & in1 & !in0;
+        let none = !some | (tested & !in0 & !in1);
+        let pick = |m: BVec4A, a: Vec4, b: Vec4| Vec4::select(m, a, b);
+        let (one, zero) = (Vec4::ONE, Vec4::ZERO);
+        let full = |v: i64| Vec4::splat(v as f32);
+        RectLanes {
+            x0: pick(behind, full(xs[0]), pick(none, one, pick(only1, x1, x0))),
+            x1: pick(behind, full(xs[1]), pick(none, zero, pick(only0, x0, x1))),
+            y0: pick(behind, full(ys[0]), pick(none, one, pick(only1, y1, y0))),
+            y1: pick(behind, full(ys[1]), pick(none, zero, pick(only0, y0, y1))),
+            behind: behind.bitmask(),
+        }
+    }
+}
+
+/// [`PixelProjection::triangle_rects_lanes`]'s result: the four rectangles' bounds per lane,
+/// exact small integers in f32 (empty when `x0 > x1` or `y0 > y1`); lanes behind the eye, in
+/// `behind`, hold the ranges (as f32: exact up to 2^24).
+#[derive(Clone, Copy, Debug)]
+pub struct RectLanes {
+    /// Lowest column.
+    pub x0: Vec4,
+    /// Highest column.
+    pub x1: Vec4,
+    /// Lowest row.
+    pub y0: Vec4,
+    /// Highest row.
+    pub y1: Vec4,
+    /// Lanes reaching behind the eye (bit per lane).
+    pub behind: u32,
+}
+
+impl RectLanes {
+    /// Bit `l` set when lane `l`'s rectangle is not empty.
+    #[inline]
+    pub fn nonempty(&self) -> u32 {
+        (self.x0.cmple(self.x1) & self.y0.cmple(self.y1)).bitmask()
+    }
+
+    /// Lane `l` as `[x0, x1, y0, y1]`.
+    #[inline]
+    pub fn lane(&self, l: usize) -> [f32; 4] {
+        [self.x0[l], self.x1[l], self.y0[l], self.y1[l]]
     }
 }
 

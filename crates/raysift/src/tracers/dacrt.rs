@@ -630,20 +630,21 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let t = idx[(p0 + l).min(nt - 1)] as usize;
                 *v = [tris.v0[t], tris.v1[t], tris.v2[t]];
             }
-            let r = proj.triangle_rects4(v, tol, xs, ys);
-            for (l, &[x0, x1, y0, y1]) in r.iter().enumerate().take(nt - p0) {
-                let keep = x0 <= x1 && y0 <= y1;
+            let r = proj.triangle_rects_lanes(v, tol, xs, ys);
+            let kept = r.nonempty();
+            for l in 0..(nt - p0).min(4) {
+                let keep = kept >> l & 1 != 0;
                 if keep {
-                    area += (x1 - x0 + 1) as f64 * (y1 - y0 + 1) as f64;
-                }
-                if !rects.is_empty() {
-                    // Task-local rows; the ranges fit in u16 (checked when `rects` was made).
-                    let y = ys[0] as i32;
-                    rects[idx[p0 + l] as usize] = if keep {
-                        [x0, x1, y0 - y, y1 - y].map(|v| v as u16)
-                    } else {
-                        [1, 0, 1, 0]
-                    };
+                    // Exact small integers (f32): the pixel ranges are below 2^16.
+                    let [x0, x1, y0, y1] = r.lane(l);
+                    area += ((x1 - x0 + 1.0) * (y1 - y0 + 1.0)) as f64;
+                    if !rects.is_empty() {
+                        // Task-local rows; the ranges fit in u16 (checked when `rects` was made).
+                        let y = ys[0] as f32;
+                        rects[idx[p0 + l] as usize] = [x0, x1, y0 - y, y1 - y].map(|v| v as u16);
+                    }
+                } else if !rects.is_empty() {
+                    rects[idx[p0 + l] as usize] = [1, 0, 1, 0];
                 }
                 idx.swap(k, p0 + l);
                 k += (keep || !cull) as usize;
