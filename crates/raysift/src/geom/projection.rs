@@ -220,7 +220,7 @@ impl PixelProjection {
         let (r1, e) = (self.rows1, self.eye32);
         let mut behind = BVec4A::splat(false);
         let (mut qx, mut qy) = ([Vec4::ZERO; 3], [Vec4::ZERO; 3]);
-        let mut err = Vec4::ZERO;
+        let mut smax = Vec4::ZERO;
         for k in 0..3 {
             let (a, b, c, d) = (tri[0][k], tri[1][k], tri[2][k], tri[3][k]);
             let wx = Vec4::new(a.x, b.x, c.x, d.x) - Vec4::splat(e.x);
@@ -233,12 +233,9 @@ impl PixelProjection {
             behind |= !uz.cmpgt(m * (2.0 * G * r1.z));
             let inv = Vec4::ONE / uz;
             let (px, py) = (ux * inv, uy * inv);
-            let scale = m * inv * (2.0 * G);
-            let ex =
-                scale * (Vec4::splat(r1.x) + px.abs() * r1.z) + px.abs() * (2.0 * f32::EPSILON);
-            let ey =
-                scale * (Vec4::splat(r1.y) + py.abs() * r1.z) + py.abs() * (2.0 * f32::EPSILON);
-            err = err.max(ex).max(ey);
+            // The vertex's bound per coordinate `p` is `scale·(row 1-norm + |p|·r1.z) +
+            // |p|·2ε`; only `scale` is kept, the bound is taken at the maxima below.
+            smax = smax.max(m * inv * (2.0 * G));
             (qx[k], qy[k]) = (px, py);
         }
         let (lx, hx) = (qx[0].min(qx[1]).min(qx[2]), qx[0].max(qx[1]).max(qx[2]));
@@ -249,6 +246,8 @@ impl PixelProjection {
         // 1% as wide as long, well under 1e-4 of the extent); a thousandth of a pixel; and
         // the f32 rounding of the differences in the edge test.
         let mag = lx.abs().max(hx.abs()).max(ly.abs()).max(hy.abs());
+        // Every vertex's projection bound, each factor at its largest (`mag` bounds every |p|).
+        let err = smax * (Vec4::splat(r1.x.max(r1.y)) + mag * r1.z) + mag * (2.0 * f32::EPSILON);
         let pad = err + Vec4::splat(tol as f32 + 1e-3) + ext * 1e-4 + mag * (8.0 * f32::EPSILON);
         // The candidate pixels, clamped to the ranges (exact small integers in f32).
         let x0 = (lx - pad).ceil().max(Vec4::splat(xs[0] as f32));

@@ -593,12 +593,14 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// triangles some box can hold: the second child takes the first child's rejects untested.
     fn live_triangles(&mut self) -> usize {
         let span = self.span[0];
-        let mut n = 0;
-        for (t, s) in span.iter().enumerate() {
-            self.tri_idx[n] = t as u32;
-            n += (s[0] <= s[1]) as usize;
-        }
-        n
+        self.tri_idx.clear();
+        self.tri_idx.extend(
+            span.iter()
+                .enumerate()
+                .filter(|(_, s)| s[0] <= s[1])
+                .map(|(t, _)| t as u32),
+        );
+        self.tri_idx.len()
     }
 
     /// Projects the triangles `tri_idx[..nt]` onto the task's pixels (rows `ys`): with `cull`
@@ -1613,8 +1615,8 @@ impl Dacrt {
         let sc = slot
             .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
             .unwrap_or_default();
-        let mut tri_idx = reuse(sc.tri_idx, ntri);
-        tri_idx.extend(0..ntri as u32);
+        // Filled by `live_triangles`.
+        let tri_idx = reuse(sc.tri_idx, ntri);
         let mut cones = reuse(sc.cones, ncones);
         cones.resize(
             ncones,
