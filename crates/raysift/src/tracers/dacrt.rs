@@ -115,7 +115,7 @@ use crate::geom::{
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
 use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
-use glam::{Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 use serde::Deserialize;
 use std::ops::Range;
 use std::sync::{Arc, Mutex};
@@ -1214,9 +1214,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 lanes += 1;
             }
             let recs = bits.map(|b| self.tile_rays[tile * 64 + b]);
-            let d = [0, 1, 2].map(|a| Vec4::from_array(recs.map(|r| r[a])));
-            let cut = Vec4::from_array(recs.map(|r| r.w));
-            let h = tri.intersect4(d, self.tmin0, cut);
+            // Records to lanes: a 4×4 transpose (shuffles, not sixteen lane moves).
+            let lanes4 = Mat4::from_cols(recs[0], recs[1], recs[2], recs[3]).transpose();
+            let d = [lanes4.x_axis, lanes4.y_axis, lanes4.z_axis];
+            let h = tri.intersect4(d, self.tmin0, lanes4.w_axis);
             let mut hit = h.mask & ((1 << lanes) - 1);
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
