@@ -1659,7 +1659,8 @@ impl Dacrt {
             cterm: 0,
             tile_leaves: false,
             leaf_tiles: self.cfg.pixel_leaf_c_limit,
-            rects: reuse(sc.rects, 0),
+            // Kept as they are: the projection pass writes every live triangle's rectangle.
+            rects: sc.rects,
             tile_rays: reuse(sc.tile_rays, 0),
             tmin0: 0.0,
             touched: reuse(sc.touched, 0),
@@ -1715,9 +1716,10 @@ impl Dacrt {
                     task.tmin0 = tmin0;
                     let tr = std::mem::take(&mut task.tile_rays);
                     task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
-                    task.rects = std::mem::take(&mut task.rects);
-                    task.rects.reserve_exact(ntri);
-                    task.rects.resize(ntri, [0; 4]);
+                    if task.rects.len() != ntri {
+                        task.rects = reuse(std::mem::take(&mut task.rects), ntri);
+                        task.rects.resize(ntri, [0; 4]);
+                    }
                     task.touched.reserve_exact(ncones);
                     task.touched.resize(ncones, 0);
                     task.touched_list.reserve_exact(ncones);
