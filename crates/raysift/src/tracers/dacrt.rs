@@ -62,9 +62,11 @@
 //!   bits. A camera batch then needs no ray list at all: the rays are kept in tile order, one
 //!   16-byte record each (direction and z-buffer). The leaf costs about one rectangle check
 //!   per triangle plus the pairs, not rays × triangles, so leaves are large (fewer than
-//!   `pixel_leaf_c_limit` = 256 live tiles). Front-to-back termination still works per pixel.
+//!   `pixel_leaf_c_limit` = 256 live tiles, more for tiny triangles). Front-to-back
+//!   termination still works per pixel. A triangle meets its pixels four at a time, through
+//!   the shared test prepared for rays from the eye ([`TriFromOrigin`], bit-identical).
 //!   Dragon, 1024²: ray/triangle tests 27.4M → 2.5M (the BVH does 2.7M), triangle/box 19.3M
-//!   → 7.3M, trace 383 → about 170 ms (BENCHMARKS.md).
+//!   → 7.3M, trace 383 → about 145 ms (BENCHMARKS.md).
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
 //!   any-hit: every hit terminates its ray, in every mode.
