@@ -167,8 +167,22 @@ impl TriFromOrigin {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::intersect_triangle;
+    use crate::geom::{intersect_triangle, TriHit};
     use rand::{Rng, SeedableRng};
+
+    /// Lane `l` of `h` is the scalar result `s`, bit for bit; counts hits and misses.
+    fn same_lane(s: Option<TriHit>, h: &Hit4, l: usize, n: usize, checked: &mut (u32, u32)) {
+        assert_eq!(s.is_some(), h.mask >> l & 1 == 1, "case {n} lane {l}");
+        if let Some(s) = s {
+            assert_eq!(
+                (s.t.to_bits(), s.u.to_bits(), s.v.to_bits()),
+                (h.t[l].to_bits(), h.u[l].to_bits(), h.v[l].to_bits())
+            );
+            checked.0 += 1;
+        } else {
+            checked.1 += 1;
+        }
+    }
 
     /// Every lane agrees with the scalar test bit for bit, on random and on edge-hugging rays
     /// (shared vertices and edges, zero direction components, degenerate triangles, NaN).
@@ -214,16 +228,7 @@ mod tests {
             let h = intersect_triangle4(o, d, &tri, tmin, tmax);
             for (l, t) in ts.iter().enumerate() {
                 let s = intersect_triangle(o, d, t[0], t[1], t[2], tmin, tmax);
-                assert_eq!(s.is_some(), h.mask >> l & 1 == 1, "case {n} lane {l}");
-                if let Some(s) = s {
-                    assert_eq!(
-                        (s.t.to_bits(), s.u.to_bits(), s.v.to_bits()),
-                        (h.t[l].to_bits(), h.u[l].to_bits(), h.v[l].to_bits())
-                    );
-                    checked.0 += 1;
-                } else {
-                    checked.1 += 1;
-                }
+                same_lane(s, &h, l, n, &mut checked);
             }
         }
         // Both outcomes exercised often.
@@ -274,16 +279,7 @@ mod tests {
             let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax));
             for l in 0..4 {
                 let s = intersect_triangle(o, dirs[l], a, b, c, tmin, tmax[l]);
-                assert_eq!(s.is_some(), h.mask >> l & 1 == 1, "case {n} lane {l}");
-                if let Some(s) = s {
-                    assert_eq!(
-                        (s.t.to_bits(), s.u.to_bits(), s.v.to_bits()),
-                        (h.t[l].to_bits(), h.u[l].to_bits(), h.v[l].to_bits())
-                    );
-                    checked.0 += 1;
-                } else {
-                    checked.1 += 1;
-                }
+                same_lane(s, &h, l, n, &mut checked);
             }
         }
         assert!(checked.0 > 20_000 && checked.1 > 20_000, "{checked:?}");

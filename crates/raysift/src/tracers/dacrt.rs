@@ -1817,35 +1817,22 @@ impl Dacrt {
                 }
             }
         }
-        let Task {
-            st,
-            tri_idx,
-            ray_idx,
-            recs,
-            cones,
-            cone_idx,
-            perm,
-            rects,
-            tile_rays,
-            touched,
-            touched_list,
-            ..
-        } = task;
+        // The buffers go back to this share's slot for the next call.
         if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
             *g = Scratch {
-                tri_idx,
-                ray_idx,
-                recs,
-                cones,
-                cone_idx,
-                perm,
-                rects,
-                tile_rays,
-                touched,
-                touched_list,
+                tri_idx: task.tri_idx,
+                ray_idx: task.ray_idx,
+                recs: task.recs,
+                cones: task.cones,
+                cone_idx: task.cone_idx,
+                perm: task.perm,
+                rects: task.rects,
+                tile_rays: task.tile_rays,
+                touched: task.touched,
+                touched_list: task.touched_list,
             };
         }
-        st
+        task.st
     }
 }
 
