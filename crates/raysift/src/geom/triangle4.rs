@@ -89,16 +89,21 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let q = cross(s, e1);
     let v = dot(d, q) * inv_det;
     let t = dot(e2, q) * inv_det;
+    accept(det, u, v, t, tmin, Vec4::splat(tmax))
+}
+
+/// The scalar test's accept conditions, in its order, lane-wise; a NaN fails every comparison
+/// but `!=` (as in the scalar test, whose NaN `det` then fails `u >= 0`).
+#[inline(always)]
+fn accept(det: L, u: L, v: L, t: L, tmin: f32, tmax: L) -> Hit4 {
     let (zero, one) = (Vec4::ZERO, Vec4::ONE);
-    // The scalar test's conditions in its order; a NaN fails every comparison but `!=` (as in
-    // the scalar test, whose NaN `det` then fails `u >= 0`).
     let ok = det.cmpne(zero)
         & u.cmpge(zero)
         & u.cmple(one)
         & v.cmpge(zero)
         & (u + v).cmple(one)
         & t.cmpge(Vec4::splat(tmin))
-        & t.cmple(Vec4::splat(tmax));
+        & t.cmple(tmax);
     Hit4 {
         mask: ok.bitmask(),
         t: t.to_array(),
@@ -147,20 +152,7 @@ impl TriFromOrigin {
         let u = dot(self.s, p) * inv_det;
         let v = dot(d, self.q) * inv_det;
         let t = self.tq * inv_det;
-        let (zero, one) = (Vec4::ZERO, Vec4::ONE);
-        let ok = det.cmpne(zero)
-            & u.cmpge(zero)
-            & u.cmple(one)
-            & v.cmpge(zero)
-            & (u + v).cmple(one)
-            & t.cmpge(Vec4::splat(tmin))
-            & t.cmple(tmax);
-        Hit4 {
-            mask: ok.bitmask(),
-            t: t.to_array(),
-            u: u.to_array(),
-            v: v.to_array(),
-        }
+        accept(det, u, v, t, tmin, tmax)
     }
 }
 
