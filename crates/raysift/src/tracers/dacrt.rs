@@ -87,9 +87,10 @@
 //!
 //! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
 //! - made by prepare: `24·T` (per axis, each triangle's `[min, max]`);
-//! - per call, for `K` tasks (kept by the tracer afterwards, so that a call allocates only what
-//!   earlier calls did not: a dynamic scene's frames allocate nothing after the first): `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray
-//!   records: origin, `tmin`, inverse direction, cut-off; see `RayRec`; not with tile leaves)
+//! - per call, for `K` tasks (kept by the tracer afterwards, so that a call allocates only
+//!   what earlier calls did not: a dynamic scene's frames allocate nothing after the first):
+//!   `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray records: origin,
+//!   `tmin`, inverse direction, cut-off; see `RayRec`; not with tile leaves)
 //!   and, in packet mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
 //!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
 //!   the bands are whole tile rows) and, for shadow rays when shadow packets are on
@@ -193,8 +194,9 @@ pub struct Config {
     /// Default true.
     pub pixel_leaf: bool,
     /// With tile leaves: a leaf when fewer active tiles than this (`c_limit`'s role; a tile
-    /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier).
-    /// Default 256.
+    /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier),
+    /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
+    /// pixels; see `Task::project_triangles`). Default 256.
     pub pixel_leaf_c_limit: usize,
 }
 
