@@ -50,8 +50,9 @@
 //!   556 to 410 ms (BENCHMARKS.md).
 //! - **Pixel culling** (ours, `Config::pixel_cull`): before dividing, the triangles whose
 //!   projection covers no pixel centre of the task's image rows are dropped: no ray of the
-//!   batch can hit them ([`crate::geom::PixelProjection::triangle_rects_lanes`]: an empty rectangle, four-wide,
-//!   with a rounding bound). Meshes denser than the image are mostly such triangles: over two
+//!   batch can hit them (an empty rectangle from
+//!   [`crate::geom::PixelProjection::triangle_rects_lanes`], four-wide, with a rounding
+//!   bound). Meshes denser than the image are mostly such triangles: over two
 //!   thirds of the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 37M; its
 //!   frame through the harness went from 827 to 573 ms with this and the cone skip above),
 //!   a third of the 871K dragon (about even there: the cull costs what it saves).
