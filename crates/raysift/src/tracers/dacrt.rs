@@ -1202,19 +1202,29 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 continue;
             }
             let rect = [x0, x1, y0, y1];
-            let tri = TriFromOrigin::new(self.apex, tris.v0[t], tris.v1[t], tris.v2[t]);
+            // Set up on the first live pixel: triangles behind finished pixels (most, late in
+            // a front-to-back recursion) cost only their rectangle.
+            let mut tri = None;
+            let mut pairs = |task: &mut Self, tile: usize| {
+                let m = tile_mask(tile % tw, tile / tw, rect) & !task.cones[tile].done;
+                if m != 0 {
+                    let tri = tri.get_or_insert_with(|| {
+                        TriFromOrigin::new(task.apex, tris.v0[t], tris.v1[t], tris.v2[t])
+                    });
+                    tests += task.tile_pairs(tile, m, t as u32, tri);
+                }
+            };
             if px.is_some() {
                 // The tiles under the rectangle.
                 for ty in (y0 / 8) as usize..=(y1 / 8) as usize {
                     for tx in (x0 / 8) as usize..=(x1 / 8) as usize {
-                        tests += self.tile_pairs(ty * tw + tx, rect, t as u32, &tri);
+                        pairs(self, ty * tw + tx);
                     }
                 }
             } else {
                 // No rectangle for the cell: the tiles still active in it.
                 for q in self.cterm..cend {
-                    let tile = self.cone_idx[q] as usize;
-                    tests += self.tile_pairs(tile, rect, t as u32, &tri);
+                    pairs(self, self.cone_idx[q] as usize);
                 }
             }
         }
@@ -1264,15 +1274,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     }
 
     /// The pairs of a tile leaf between triangle `t` (`tri`, seen from the eye, where every ray
-    /// of the task starts, at `tmin0`: checked at set-up) and the live pixels of `tile` inside
-    /// `rect`, four at a time; marks the pixels hit in `touched`. Returns the number of pairs.
+    /// of the task starts, at `tmin0`: checked at set-up) and the pixels `m` of `tile` (live,
+    /// in its rectangle), four at a time; marks the pixels hit in `touched`. Returns the number
+    /// of pairs.
     #[inline(always)]
-    fn tile_pairs(&mut self, tile: usize, rect: [i64; 4], t: u32, tri: &TriFromOrigin) -> u64 {
+    fn tile_pairs(&mut self, tile: usize, mut m: u64, t: u32, tri: &TriFromOrigin) -> u64 {
         let Packets::Tiles { width, tw, .. } = self.packets else {
             return 0;
         };
         let (tx, ty) = (tile % tw, tile / tw);
-        let mut m = tile_mask(tx, ty, rect) & !self.cones[tile].done;
         let n = m.count_ones() as u64;
         while m != 0 {
             // Up to four pixels; missing lanes repeat the first (their results are ignored).
