@@ -65,9 +65,13 @@
 //!   per triangle plus the pairs, not rays × triangles, so leaves are large (fewer than
 //!   `pixel_leaf_c_limit` = 256 live tiles, more for tiny triangles). Front-to-back
 //!   termination still works per pixel. A triangle meets its pixels four at a time, through
-//!   the shared test prepared for rays from the eye ([`TriFromOrigin`], bit-identical).
-//!   Dragon, 1024²: ray/triangle tests 27.4M → 2.5M (the BVH does 2.7M), triangle/box 19.3M
-//!   → 7.3M, trace 383 → about 145 ms (BENCHMARKS.md).
+//!   the shared test prepared for rays from the eye ([`TriFromOrigin`], bit-identical), and
+//!   is set up only when its rectangle still has a live pixel; the pixels hit in a leaf are
+//!   checked for termination four at a time (`final_hit4`, lane-wise the scalar test). The
+//!   rays are put in tile order by the same pass that checks they come from the eye and
+//!   bounds their deviation from their pixels ([`PixelProjection::deviation4`], f32).
+//!   Dragon, 1024²: ray/triangle tests 27.4M → 2.6M (the BVH does 2.7M), triangle/box 19.3M
+//!   → 6.1M, trace 383 → about 125 ms (BENCHMARKS.md).
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
 //!   termination, children ordered by the majority sign of the split-axis direction. Occlusion is
 //!   any-hit: every hit terminates its ray, in every mode.
@@ -1565,7 +1569,7 @@ fn tile_ordered_rays(
 /// `eye` with the first ray's `tmin` (at least 0) and that bound is at most
 /// [`MAX_PIXEL_DEVIATION`]; otherwise `Err` with the buffer back (contents unspecified). One
 /// pass instead of three (the 871K dragon at 1024²: an f64 check, 6 ms, and the reordering,
-/// 4 ms, became one pass of about ? ms).
+/// 4 ms, became one pass of about 8.5 ms; the pass is memory-bound).
 fn pinhole_tile_rays(
     mut v: Vec<Vec4>,
     rays: &RayBatch,
