@@ -1,6 +1,7 @@
 """Mora 2011, Fig. 14, from benchmark results: DACRT's whole frame against build + trace.
 
     python3 bench/fig14.py bench/results/<date>.json [more.json ...] [--threads 1] [--min-tris 50000]
+                           [--run last|first]
 
 For every scene of at least --min-tris triangles with a camera workload (1024x1024 primary rays in
 the full run), one row: DACRT's frame (prepare + trace: it has no structure to keep), our BVH's
@@ -8,6 +9,12 @@ build + trace and trace alone, Embree's fastest build + 16-wide packet trace (LO
 faster per round) and its trace alone, and the ratios the issue sets targets for. Ratios are
 medians of per-round ratios (contenders alternate within a round, so a round shares the machine's
 state), not ratios of medians. Prints a Markdown table.
+
+--run picks the run inside each process: the last (default, what the harness measures: a process
+warmed by its earlier runs, as a renderer's steady state) or the first (a cold process: page faults
+of fresh memory included). The harness keeps several runs per process only for contenders whose
+warm-up run is shorter than its --long-run-ms; run it with a huge --long-run-ms to compare every
+contender both ways.
 """
 
 from __future__ import annotations
@@ -18,21 +25,28 @@ import statistics
 import sys
 
 
-def per_round(c):
-    """(prepare + trace, trace) per measured round of a contender."""
-    return [(r["prepare_ms"] + r["trace_ms"], r["trace_ms"]) for r in c.get("runs", [])]
+def per_round(c, run="last"):
+    """(prepare + trace, trace) per measured round of a contender, of the process's last or first
+    run."""
+    k = -1 if run == "last" else 0
+    out = []
+    for r in c.get("runs", []):
+        pre = r.get("prepare_ms_runs") or [r["prepare_ms"]]
+        tr = r.get("trace_ms_runs") or [r["trace_ms"]]
+        out.append((pre[k] + tr[k], tr[k]))
+    return out
 
 
-def rows(results, threads, min_tris):
+def rows(results, threads, min_tris, run="last"):
     out = []
     for s in results["scenes"]:
         w = s.get("workloads", {}).get("camera")
         if not w or s["triangles"] < min_tris:
             continue
         cs = w["contenders"]
-        d = per_round(cs.get(f"dacrt-{threads}t", {}))
-        b = per_round(cs.get(f"bvh-{threads}t", {}))
-        es = [per_round(cs.get(f"embree-{q}-{threads}t", {})) for q in ("low", "medium")]
+        d = per_round(cs.get(f"dacrt-{threads}t", {}), run)
+        b = per_round(cs.get(f"bvh-{threads}t", {}), run)
+        es = [per_round(cs.get(f"embree-{q}-{threads}t", {}), run) for q in ("low", "medium")]
         es = [e for e in es if e]
         n = min([len(d), len(b)] + [len(e) for e in es])
         if n == 0:
@@ -61,11 +75,13 @@ def main(argv=None):
     ap.add_argument("results", nargs="+")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--min-tris", type=int, default=50_000)
+    ap.add_argument("--run", choices=("last", "first"), default="last",
+                    help="which run of each process: last (warm, default) or first (cold)")
     a = ap.parse_args(argv)
     table = []
     for p in a.results:
         with open(p) as f:
-            table += rows(json.load(f), a.threads, a.min_tris)
+            table += rows(json.load(f), a.threads, a.min_tris, a.run)
     if not table:
         print("no scene with a camera workload and both dacrt and bvh runs", file=sys.stderr)
         return 1

@@ -628,7 +628,7 @@ def bench_scene(ctx, spec, results):
                 if warm:
                     # Runs of a second or more hardly feel process warm-up: one run per process
                     # there (saves time on big scenes); naive has no structure to build.
-                    long_run = r["prepare_ms"] + r["trace_ms"] > LONG_RUN_MS
+                    long_run = r["prepare_ms"] + r["trace_ms"] > ctx["long_run_ms"]
                     c["inproc"] = 1 if long_run or c.get("tracer") == "naive" else ctx["inproc"]
                     cres["inproc"] = c["inproc"]
                     if (r["prepare_ms"] + r["trace_ms"]) / 1e3 > ctx["slow_s"] and ctx["rounds"] > SLOW_ROUNDS:
@@ -713,6 +713,10 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, help="measured rounds after the warm-up (default 5; quick 3)")
     ap.add_argument("--inproc", type=int, help="prepare+trace runs inside each process, the last one "
                     "measured (default 2; --check 1)")
+    ap.add_argument("--long-run-ms", type=float, default=LONG_RUN_MS, help="a contender whose warm-up run "
+                    "(prepare + trace) takes longer is run once per process, measuring a cold process "
+                    "(default %(default)s; a huge value keeps --inproc runs for everyone, so that "
+                    "fig14.py can compare first and last runs alike)")
     ap.add_argument("--slow", type=float, default=SLOW_RUN_S, help="seconds per run above which a contender is "
                     f"measured in {SLOW_ROUNDS} rounds only (default %(default)s; 0 = never)")
     ap.add_argument("--timeout", type=float, default=600, help="seconds before one contender run is killed")
@@ -754,7 +758,7 @@ def main(argv=None):
     ctx = dict(mode=mode, raysift=raysift, peer=peer, cpus=all_cpus, threads=threads, tracers=tracers,
                rounds=mode["rounds"], timeout=args.timeout,
                slow_s=args.slow if args.slow > 0 else float("inf"),
-               inproc=args.inproc or (1 if mode_name == "check" else 2), keep_work=args.keep_work,
+               inproc=args.inproc or (1 if mode_name == "check" else 2), keep_work=args.keep_work, long_run_ms=args.long_run_ms,
                workloads=[w for w in args.workloads.split(",") if w in WORKLOADS],
                work=Path(args.work) if args.work else BENCH / "work" / mode_name)
     ctx["work"].mkdir(parents=True, exist_ok=True)
@@ -763,7 +767,7 @@ def main(argv=None):
         meta=dict(date=now.strftime("%Y-%m-%d %H:%M UTC"), mode=mode_name,
                   command="python3 bench/run.py " + shlex.join(sys.argv[1:] if argv is None else argv),
                   cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
-                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], long_run_ms=LONG_RUN_MS, camera=[mode["width"], mode["height"]],
+                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], long_run_ms=ctx["long_run_ms"], camera=[mode["width"], mode["height"]],
                   random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
                   raysift_tracers=tracers, raysift_binary=str(raysift),
                   raysift_version=run_proc([raysift, "--version"])[0].strip(), kernel=platform.release(), versions=versions(),
