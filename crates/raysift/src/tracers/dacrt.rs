@@ -1245,19 +1245,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             if !self.terminate {
                 continue;
             }
-            // Four pixels at a time (missing lanes repeat the first; their answers are unused).
+            // Four pixels at a time.
             while m != 0 {
-                let mut bits = [m.trailing_zeros() as usize; 4];
-                let mut lanes = 0;
-                while m != 0 && lanes < 4 {
-                    bits[lanes] = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    lanes += 1;
-                }
-                let recs = bits.map(|b| self.tile_rays[tile * 64 + b]);
-                let r = Mat4::from_cols(recs[0], recs[1], recs[2], recs[3]).transpose();
-                let d = [r.x_axis, r.y_axis, r.z_axis];
-                let done = Self::final_hit4(cell, self.apex, d, self.tmin0, r.w_axis, &ord);
+                let (bits, lanes) = pop4(&mut m);
+                let (d, bt) = self.tile_lanes(tile, bits);
+                let done = Self::final_hit4(cell, self.apex, d, self.tmin0, bt, &ord);
                 for (l, &b) in bits.iter().enumerate().take(lanes) {
                     self.cones[tile].done |= ((done >> l & 1) as u64) << b;
                 }
@@ -1277,6 +1269,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
     }
 
+    /// The records of pixels `bits` of `tile` as four lanes: directions per axis and cut-offs
+    /// (a 4×4 transpose: shuffles, not sixteen lane moves).
+    #[inline(always)]
+    fn tile_lanes(&self, tile: usize, bits: [usize; 4]) -> ([Vec4; 3], Vec4) {
+        let recs = bits.map(|b| self.tile_rays[tile * 64 + b]);
+        let r = Mat4::from_cols(recs[0], recs[1], recs[2], recs[3]).transpose();
+        ([r.x_axis, r.y_axis, r.z_axis], r.w_axis)
+    }
+
     /// The pairs of a tile leaf between triangle `t` (`tri`, seen from the eye, where every ray
     /// of the task starts, at `tmin0`: checked at set-up) and the pixels `m` of `tile` (live,
     /// in its rectangle), four at a time; marks the pixels hit in `touched`. Returns the number
@@ -1289,19 +1290,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let (tx, ty) = (tile % tw, tile / tw);
         let n = m.count_ones() as u64;
         while m != 0 {
-            // Up to four pixels; missing lanes repeat the first (their results are ignored).
-            let mut bits = [m.trailing_zeros() as usize; 4];
-            let mut lanes = 0;
-            while m != 0 && lanes < 4 {
-                bits[lanes] = m.trailing_zeros() as usize;
-                m &= m - 1;
-                lanes += 1;
-            }
-            let recs = bits.map(|b| self.tile_rays[tile * 64 + b]);
-            // Records to lanes: a 4×4 transpose (shuffles, not sixteen lane moves).
-            let lanes4 = Mat4::from_cols(recs[0], recs[1], recs[2], recs[3]).transpose();
-            let d = [lanes4.x_axis, lanes4.y_axis, lanes4.z_axis];
-            let h = tri.intersect4(d, self.tmin0, lanes4.w_axis);
+            let (bits, lanes) = pop4(&mut m);
+            let (d, cut) = self.tile_lanes(tile, bits);
+            let h = tri.intersect4(d, self.tmin0, cut);
             let mut hit = h.mask & ((1 << lanes) - 1);
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
@@ -1310,7 +1301,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
                 if ANY {
                     self.occ[k] = true;
-                } else if closer(h.t[l], t, recs[l].w, self.prim[k]) {
+                } else if closer(h.t[l], t, cut[l], self.prim[k]) {
                     self.tile_rays[tile * 64 + bit].w = h.t[l];
                     (self.prim[k], self.u[k], self.v[k]) = (t, h.u[l], h.v[l]);
                 }
@@ -1511,6 +1502,20 @@ fn tile_mask(tx: usize, ty: usize, [x0, x1, y0, y1]: [i64; 4]) -> u64 {
     // One 0x01 byte per row of the range.
     let rows = (low(8 * r1) & !low(8 * r0)) / 0xff;
     cols * rows
+}
+
+/// Up to four set bits of `m`, lowest first, taken out of it, and how many: a group of lanes.
+/// Missing lanes repeat the first (callers ignore their results).
+#[inline(always)]
+fn pop4(m: &mut u64) -> ([usize; 4], usize) {
+    let mut bits = [m.trailing_zeros() as usize; 4];
+    let mut lanes = 0;
+    while *m != 0 && lanes < 4 {
+        bits[lanes] = m.trailing_zeros() as usize;
+        *m &= *m - 1;
+        lanes += 1;
+    }
+    (bits, lanes)
 }
 
 /// How many triangles ahead the list loops prefetch their scattered data.
