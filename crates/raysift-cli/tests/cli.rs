@@ -141,6 +141,32 @@ fn trace_agrees_between_tracers_through_files() {
                 &occ,
                 "--occlusion",
             ]);
+            // Runs in one process reuse the output buffers: every run rewrites all of them.
+            let (hits3, occ3) = (p(d.path(), "hits3.npy"), p(d.path(), "occ3.npy"));
+            for (out, extra) in [(&hits3, None), (&occ3, Some("--occlusion"))] {
+                let mut args = vec![
+                    "trace",
+                    "sphere:2000",
+                    "--rays",
+                    r,
+                    "--tracer",
+                    &t,
+                    "--out",
+                    out,
+                    "--repeat",
+                    "3",
+                ];
+                args.extend(extra);
+                ok(&args);
+            }
+            assert!(
+                std::fs::read(&hits3).unwrap() == std::fs::read(&hits).unwrap(),
+                "{t}"
+            );
+            assert!(
+                std::fs::read(&occ3).unwrap() == std::fs::read(&occ).unwrap(),
+                "{t}"
+            );
             outputs.push((
                 t,
                 std::fs::read(&hits).unwrap(),
