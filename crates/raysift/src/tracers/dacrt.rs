@@ -68,8 +68,8 @@
 //!   the shared test prepared for rays from the eye ([`TriFromOrigin`], bit-identical), and
 //!   is set up only when its rectangle still has a live pixel; the pixels hit in a leaf are
 //!   checked for termination four at a time (`final_hit4`, lane-wise the scalar test). The
-//!   rays are put in tile order by the same pass that checks they come from the eye and
-//!   bounds their deviation from their pixels ([`PixelProjection::deviation4`], f32).
+//!   rays' deviation from their pixels is bounded in f32, four at a time
+//!   ([`PixelProjection::deviation4`]), with the check that they come from the eye.
 //!   Dragon, 1024²: ray/triangle tests 27.4M → 2.6M (the BVH does 2.7M), triangle/box 19.3M
 //!   → 6.1M, trace 383 → about 125 ms (BENCHMARKS.md).
 //! - **§3.4** (random rays): z-buffer (per-ray best `t`, the hit array itself) instead of
@@ -620,8 +620,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// non-degenerate triangles, projected onto the task's pixels (rows `ys`) on the way,
     /// scene order: with `cull` (`Config::pixel_cull`), only the triangles some pixel's ray of
     /// the task can hit; with pixel leaves, each one's rectangle goes to `rects`. Returns the
-    /// count. One pass over the vertices in order (reading the list, then the vertices through
-    /// it, cost a third more on the 871K dragon).
+    /// count. One pass over the vertices in order (a list pass, then reads through the list,
+    /// made the 871K dragon's frame about 5% slower).
     fn project_triangles(
         &mut self,
         proj: &PixelProjection,
@@ -1573,38 +1573,27 @@ fn tile_ordered_rays(
     v
 }
 
-/// [`tile_ordered_rays`] for a pinhole band whose first row is image row `base / width`,
-/// measuring the rays on the way: `Ok` with the largest deviation of a ray from its pixel (an
-/// upper bound, [`PixelProjection::deviation4`], four rays at a time) when every ray starts at
-/// `eye` with the first ray's `tmin` (at least 0) and that bound is at most
-/// [`MAX_PIXEL_DEVIATION`]; otherwise `Err` with the buffer back (contents unspecified). One
-/// pass instead of three (the 871K dragon at 1024²: an f64 check, 6 ms, and the reordering,
-/// 4 ms, became one pass of about 8.5 ms; the pass is memory-bound).
-fn pinhole_tile_rays(
-    mut v: Vec<Vec4>,
+/// The largest deviation of the rays of a pinhole band (first row: image row `base / width`)
+/// from their pixels, an upper bound ([`PixelProjection::deviation4`], f32, four rays at a
+/// time), when every ray starts at `eye` with the first ray's `tmin` (at least 0) and the bound
+/// is at most [`MAX_PIXEL_DEVIATION`]; `None` otherwise. Read-only, so a batch that fails
+/// allocates nothing for tile leaves. Memory-bound like the exact f64 check of a fixed
+/// tolerance it replaces (about 9 ms each on 1024² rays, measured in one run), but it measures
+/// the bound, so jittered rays need no second, per-ray f64 pass.
+fn pinhole_deviation(
     rays: &RayBatch,
     base: usize,
     width: usize,
     rows: usize,
     proj: &PixelProjection,
     eye: Vec3,
-) -> std::result::Result<(Vec<Vec4>, f64), Vec<Vec4>> {
-    v.clear();
-    v.reserve_exact(width.div_ceil(8) * rows.div_ceil(8) * 64);
+) -> Option<f64> {
     let tmin0 = rays.tmin[base];
     // NaN-safe: a NaN `tmin` fails too.
     if tmin0.is_nan() || tmin0 < 0.0 {
-        return Err(v);
+        return None;
     }
     let row0 = base / width;
-    let load = |a: &[f32], i: usize, valid: usize| -> Vec4 {
-        if valid == 4 {
-            Vec4::from_slice(&a[i..i + 4])
-        } else {
-            // Lanes past the row repeat its last ray (their records are not kept).
-            Vec4::from_array(std::array::from_fn(|l| a[i + l.min(valid - 1)]))
-        }
-    };
     let (ex, ey, ez, et) = (
         Vec4::splat(eye.x),
         Vec4::splat(eye.y),
@@ -1612,50 +1601,36 @@ fn pinhole_tile_rays(
         Vec4::splat(tmin0),
     );
     let mut dev = Vec4::ZERO;
-    for ty in 0..rows.div_ceil(8) {
-        for tx in 0..width.div_ceil(8) {
-            for y in ty * 8..ty * 8 + 8 {
-                for x in [tx * 8, tx * 8 + 4] {
-                    if y >= rows || x >= width {
-                        v.extend([Vec4::ZERO; 4]);
-                        continue;
-                    }
-                    let valid = (width - x).min(4);
-                    let i = base + y * width + x;
-                    let d = [load(&rays.dx, i, valid), load(&rays.dy, i, valid)];
-                    let d = [d[0], d[1], load(&rays.dz, i, valid)];
-                    let from_eye = load(&rays.ox, i, valid).cmpeq(ex)
-                        & load(&rays.oy, i, valid).cmpeq(ey)
-                        & load(&rays.oz, i, valid).cmpeq(ez)
-                        & load(&rays.tmin, i, valid).cmpeq(et);
-                    let want = (1 << valid) - 1;
-                    let e = proj.deviation4(d, x as u32, (row0 + y) as u32);
-                    // NaN-safe: a NaN bound fails the comparison.
-                    let ok = from_eye & e.cmple(Vec4::splat(MAX_PIXEL_DEVIATION as f32));
-                    if ok.bitmask() & want != want {
-                        return Err(v);
-                    }
-                    // The lanes past the row repeat its last ray (a bound for another pixel).
-                    let e = Vec4::select(
-                        BVec4A::from_array(std::array::from_fn(|l| l < valid)),
-                        e,
-                        Vec4::ZERO,
-                    );
-                    dev = dev.max(e);
-                    let tmax = load(&rays.tmax, i, valid);
-                    let m = Mat4::from_cols(d[0], d[1], d[2], tmax).transpose();
-                    for (l, r) in m.to_cols_array_2d().into_iter().enumerate() {
-                        v.push(if l < valid {
-                            Vec4::from_array(r)
-                        } else {
-                            Vec4::ZERO
-                        });
-                    }
+    for y in 0..rows {
+        for x in (0..width).step_by(4) {
+            // A short last group repeats the row's last ray (a bound for another pixel: only
+            // the valid lanes count).
+            let valid = (width - x).min(4);
+            let i = base + y * width + x;
+            let load = |a: &[f32]| -> Vec4 {
+                if valid == 4 {
+                    Vec4::from_slice(&a[i..i + 4])
+                } else {
+                    Vec4::from_array(std::array::from_fn(|l| a[i + l.min(valid - 1)]))
                 }
+            };
+            let d = [&rays.dx, &rays.dy, &rays.dz].map(|a| load(a));
+            let from_eye = load(&rays.ox).cmpeq(ex)
+                & load(&rays.oy).cmpeq(ey)
+                & load(&rays.oz).cmpeq(ez)
+                & load(&rays.tmin).cmpeq(et);
+            let e = proj.deviation4(d, x as u32, (row0 + y) as u32);
+            // NaN-safe: a NaN bound fails the comparison.
+            let ok = from_eye & e.cmple(Vec4::splat(MAX_PIXEL_DEVIATION as f32));
+            let want = (1 << valid) - 1;
+            if ok.bitmask() & want != want {
+                return None;
             }
+            let lanes = BVec4A::from_array(std::array::from_fn(|l| l < valid));
+            dev = dev.max(Vec4::select(lanes, e, Vec4::ZERO));
         }
     }
-    Ok((v, dev.max_element() as f64))
+    Some(dev.max_element() as f64)
 }
 
 /// Calls `f(k, j)` for every pixel of a `width × rows` band: `k` its index in the band (row
@@ -1860,19 +1835,16 @@ impl Dacrt {
             // eye (the layout is only a hint).
             let row0 = range.start / width;
             let tiles_fit = width <= 1 << 16 && rows <= 1 << 16;
-            // With tile leaves, one pass puts the rays in tile order and bounds their deviation
-            // (f32, four at a time). Otherwise, or when that fails, exact pinhole rays pass a
-            // fixed tolerance without a division per ray, and other rays have their largest
+            // With tile leaves, the rays' deviation is bounded in f32, four at a time, with
+            // their origins and `tmin`. Otherwise, or when that fails, exact pinhole rays pass
+            // a fixed tolerance without a division per ray, and other rays have their largest
             // deviation measured.
             let mut tol = PINHOLE_TOL;
             let mut pinhole = false;
             if self.cfg.pixel_leaf && tiles_fit {
-                let tr = std::mem::take(&mut task.tile_rays);
-                (pinhole, task.tile_rays, tol) =
-                    match pinhole_tile_rays(tr, rays, range.start, width, rows, &proj, apex) {
-                        Ok((v, dev)) => (true, v, dev),
-                        Err(v) => (false, v, tol),
-                    };
+                if let Some(dev) = pinhole_deviation(rays, range.start, width, rows, &proj, apex) {
+                    (pinhole, tol) = (true, dev);
+                }
             }
             let mut from_eye = true;
             if !pinhole {
@@ -1907,10 +1879,8 @@ impl Dacrt {
                 if self.cfg.pixel_leaf && uniform && tiles_fit {
                     task.tile_leaves = true;
                     task.tmin0 = tmin0;
-                    if !pinhole {
-                        let tr = std::mem::take(&mut task.tile_rays);
-                        task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
-                    }
+                    let tr = std::mem::take(&mut task.tile_rays);
+                    task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
                     if task.rects.len() != ntri {
                         task.rects = reuse(std::mem::take(&mut task.rects), ntri);
                         task.rects.resize(ntri, [0; 4]);
