@@ -125,10 +125,15 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 shadow.tmax[i] = 1.0;
             }
             shadow.layout = RayLayout::ToPoint { target: light };
+            // Camera rays in another order, still labelled pinhole: the pixel check fails, no
+            // tile leaves (7919 is prime to R = 2^10·3, so i ↦ 7919·i mod R permutes).
+            let mut shuffled = RayBatch::from_rays((0..r).map(|i| cam.get(i * 7919 % r)));
+            shuffled.layout = cam.layout;
             for (mode, rays) in [
                 ("ray", &cam),
                 ("random", &random),
                 ("packet", &cam),
+                ("packet shuffled", &shuffled),
                 ("auto", &random),
                 ("shadow", &shadow),
                 ("shadow rays", &shadow),
@@ -137,7 +142,7 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 let c = run(
                     scene,
                     rays,
-                    if mode.starts_with("shadow") {
+                    if mode.starts_with("shadow") || mode.starts_with("packet") {
                         "packet"
                     } else {
                         mode
@@ -153,8 +158,9 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 // shadow rays' 8-byte Morton order. Camera packets end in tile leaves: no ray
                 // list, but each task's 8-byte pixel rectangle per triangle and per tile 1036
                 // bytes (its 64 rays' 16-byte records, the pixels hit in a leaf, a list of
-                // such tiles).
-                let cones = if mode == "packet" || mode == "shadow" {
+                // such tiles). Shuffled camera rays fail the pixel check: flushes to rays, and
+                // nothing allocated for tile leaves.
+                let cones = if mode.starts_with("packet") || mode == "shadow" {
                     r / 64
                 } else {
                     0

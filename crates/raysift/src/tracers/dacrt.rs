@@ -108,7 +108,8 @@
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
 //! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 24 +
-//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false`). These are the bytes a
+//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false` or when the rays fail the
+//! pixel check: it allocates nothing). These are the bytes a
 //! first call allocates, so also a bound on its peak, and what the tracer then holds
 //! ([`Tracer::bytes`]: `24·T` plus the kept buffers); `Stats::peak_bytes` reports the largest
 //! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
