@@ -639,6 +639,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         self.tri_idx.clear();
         let idx = &mut self.tri_idx;
         let rects = &mut self.rects;
+        let tile_leaves = self.tile_leaves;
         let mut area = 0.0f64;
         let mut live_count = 0;
         let row0 = Vec4::splat(ys[0] as f32);
@@ -660,16 +661,17 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             // Exact small integers (f32): the pixel ranges are below 2^16.
             let a = (r.x1 - r.x0 + Vec4::ONE) * (r.y1 - r.y0 + Vec4::ONE);
             area += Vec4::select(lanes, a, Vec4::ZERO).element_sum() as f64;
-            if !rects.is_empty() {
+            if tile_leaves {
                 // Task-local rows; the ranges fit in u16 (tile leaves need both image
-                // dimensions at most 2^16). Lanes: columns of the transpose.
+                // dimensions at most 2^16). Lanes: columns of the transpose. Pushed in
+                // triangle order (`rects[t]`), no zero fill first.
                 let c = Mat4::from_cols(r.x0, r.x1, r.y0 - row0, r.y1 - row0).transpose();
                 for l in 0..m {
-                    rects[t0 + l] = if kept >> l & 1 != 0 {
+                    rects.push(if kept >> l & 1 != 0 {
                         c.col(l).to_array().map(|v| v as u16)
                     } else {
                         [1, 0, 1, 0]
-                    };
+                    });
                 }
             }
             let keep = if cull { kept } else { live };
@@ -1814,8 +1816,8 @@ impl Dacrt {
             cterm: 0,
             tile_leaves: false,
             leaf_tiles: self.cfg.pixel_leaf_c_limit,
-            // Kept as they are: the projection pass writes every live triangle's rectangle.
-            rects: sc.rects,
+            // Filled by the projection pass, in triangle order.
+            rects: reuse(sc.rects, 0),
             tile_rays: reuse(sc.tile_rays, 0),
             tmin0: 0.0,
             touched: reuse(sc.touched, 0),
@@ -1882,10 +1884,7 @@ impl Dacrt {
                     task.tmin0 = tmin0;
                     let tr = std::mem::take(&mut task.tile_rays);
                     task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
-                    if task.rects.len() != ntri {
-                        task.rects = reuse(std::mem::take(&mut task.rects), ntri);
-                        task.rects.resize(ntri, [0; 4]);
-                    }
+                    task.rects.reserve_exact(ntri);
                     task.touched.reserve_exact(ncones);
                     task.touched.resize(ncones, 0);
                     task.touched_list.reserve_exact(ncones);
