@@ -112,53 +112,24 @@ fn trace_agrees_between_tracers_through_files() {
     for r in [&rays, &random] {
         let mut outputs = Vec::new();
         for t in tracer_names() {
+            // `trace` of these rays with tracer `t` into `out`, plus `extra` options.
+            let trace = |out: &str, extra: &[&str]| {
+                let mut args = vec!["trace", "sphere:2000", "--rays", r, "--tracer", &t];
+                args.extend(["--out", out]);
+                args.extend(extra);
+                ok(&args)
+            };
             let hits = p(d.path(), &format!("hits-{t}.npy"));
-            let o = ok(&[
-                "trace",
-                "sphere:2000",
-                "--rays",
-                r,
-                "--tracer",
-                &t,
-                "--out",
-                &hits,
-                "--json",
-                "--threads",
-                "2",
-            ]);
+            let o = trace(&hits, &["--json", "--threads", "2"]);
             let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             assert_eq!(v["tracer"], t.as_str());
             assert_eq!(v["threads"], 2);
             let occ = p(d.path(), &format!("occ-{t}.npy"));
-            ok(&[
-                "trace",
-                "sphere:2000",
-                "--rays",
-                r,
-                "--tracer",
-                &t,
-                "--out",
-                &occ,
-                "--occlusion",
-            ]);
-            // Runs in one process reuse the output buffers: every run rewrites all of them.
+            trace(&occ, &["--occlusion"]);
+            // Runs in one process reuse the output buffers: the last run writes what one run does.
             let (hits3, occ3) = (p(d.path(), "hits3.npy"), p(d.path(), "occ3.npy"));
-            for (out, extra) in [(&hits3, None), (&occ3, Some("--occlusion"))] {
-                let mut args = vec![
-                    "trace",
-                    "sphere:2000",
-                    "--rays",
-                    r,
-                    "--tracer",
-                    &t,
-                    "--out",
-                    out,
-                    "--repeat",
-                    "3",
-                ];
-                args.extend(extra);
-                ok(&args);
-            }
+            trace(&hits3, &["--repeat", "3"]);
+            trace(&occ3, &["--repeat", "3", "--occlusion"]);
             assert!(
                 std::fs::read(&hits3).unwrap() == std::fs::read(&hits).unwrap(),
                 "{t}"
