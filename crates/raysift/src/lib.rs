@@ -25,6 +25,7 @@
 
 pub mod error;
 pub mod geom;
+mod mem;
 pub mod output;
 pub mod rays;
 pub mod render;

@@ -7,6 +7,7 @@
 
 pub mod aabb;
 pub mod conebox;
+pub mod lanes;
 pub mod projection;
 pub mod shapes;
 pub mod slab;

@@ -19,8 +19,9 @@
 //! projected corners) gives [`PixelProjection::triangle_may_cover`]: a triangle whose
 //! projection, padded, holds no pixel centre is hit by no ray of the image.
 
+use super::lanes::Lanes;
 use super::Aabb;
-use glam::{BVec4A, DMat3, DVec2, DVec3, Mat3A, Vec3, Vec3A, Vec4};
+use glam::{DMat3, DVec2, DVec3, Mat3A, Vec3, Vec3A, Vec4};
 
 /// World directions to pixel coordinates of one pinhole image (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -239,8 +240,8 @@ impl PixelProjection {
         })
     }
 
-    /// [`Self::triangle_rects4`] as four lanes, without leaving SIMD registers: the form the
-    /// tracers' projection loops use.
+    /// [`Self::triangle_rects4`] as four lanes, without leaving SIMD registers.
+    #[inline]
     pub fn triangle_rects_lanes(
         &self,
         tri: [[Vec3; 3]; 4],
@@ -248,32 +249,45 @@ impl PixelProjection {
         xs: [i64; 2],
         ys: [i64; 2],
     ) -> RectLanes {
+        let v = std::array::from_fn(|k| std::array::from_fn(|a| Vec4::from_fn(|l| tri[l][k][a])));
+        self.triangle_rects_wide(v, tol, xs, ys)
+    }
+
+    /// [`Self::triangle_rects4`] for `L::N` triangles (`v[k]` holds corner `k`'s x, y and z
+    /// lanes), as lanes: the form the tracers' projection loops use, at the width the CPU runs
+    /// best (see [`super::lanes`]; every width gives the same rectangles).
+    #[inline(always)]
+    pub fn triangle_rects_wide<L: Lanes>(
+        &self,
+        v: [[L; 3]; 3],
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+    ) -> RectLanes<L> {
         // In f32, with a rounding bound per vertex: `w = v − eye`, `u = H·w` (f32 copy of H)
         // differ from the exact `H·(v − eye)` by at most γ·(row 1-norm of H)·max|w| per
         // coordinate, γ = 8ε being over twice the γ₆ of these operations (including the
         // rounding of H to f32); the division adds a relative ε and, with `u.z` at least twice
         // its error, at most doubles the numerator's.
         const G: f32 = 8.0 * f32::EPSILON;
+        let c = L::splat;
         let h = &self.h32;
         let (r1, e) = (self.rows1, self.eye32);
-        let mut behind = BVec4A::splat(false);
-        let (mut qx, mut qy) = ([Vec4::ZERO; 3], [Vec4::ZERO; 3]);
-        let mut smax = Vec4::ZERO;
+        let mut behind = L::mask_splat(false);
+        let (mut qx, mut qy) = ([c(0.0); 3], [c(0.0); 3]);
+        let mut smax = c(0.0);
         for k in 0..3 {
-            let (a, b, c, d) = (tri[0][k], tri[1][k], tri[2][k], tri[3][k]);
-            let wx = Vec4::new(a.x, b.x, c.x, d.x) - Vec4::splat(e.x);
-            let wy = Vec4::new(a.y, b.y, c.y, d.y) - Vec4::splat(e.y);
-            let wz = Vec4::new(a.z, b.z, c.z, d.z) - Vec4::splat(e.z);
-            let row = |r: usize| wx * h.x_axis[r] + wy * h.y_axis[r] + wz * h.z_axis[r];
+            let (wx, wy, wz) = (v[k][0] - c(e.x), v[k][1] - c(e.y), v[k][2] - c(e.z));
+            let row = |r: usize| wx * c(h.x_axis[r]) + wy * c(h.y_axis[r]) + wz * c(h.z_axis[r]);
             let (ux, uy, uz) = (row(0), row(1), row(2));
             let m = wx.abs().max(wy.abs()).max(wz.abs());
             // NaN-safe: a NaN `uz` fails the comparison, the lane counts as behind.
-            behind |= !uz.cmpgt(m * (2.0 * G * r1.z));
-            let inv = Vec4::ONE / uz;
+            behind = behind | !uz.cmpgt(m * c(2.0 * G * r1.z));
+            let inv = c(1.0) / uz;
             let (px, py) = (ux * inv, uy * inv);
             // The vertex's bound per coordinate `p` is `scale·(row 1-norm + |p|·r1.z) +
             // |p|·2ε`; only `scale` is kept, the bound is taken at the maxima below.
-            smax = smax.max(m * inv * (2.0 * G));
+            smax = smax.max(m * inv * c(2.0 * G));
             (qx[k], qy[k]) = (px, py);
         }
         let (lx, hx) = (qx[0].min(qx[1]).min(qx[2]), qx[0].max(qx[1]).max(qx[2]));
@@ -285,36 +299,36 @@ impl PixelProjection {
         // the f32 rounding of the differences in the edge test.
         let mag = lx.abs().max(hx.abs()).max(ly.abs()).max(hy.abs());
         // Every vertex's projection bound, each factor at its largest (`mag` bounds every |p|).
-        let err = smax * (Vec4::splat(r1.x.max(r1.y)) + mag * r1.z) + mag * (2.0 * f32::EPSILON);
-        let pad = err + Vec4::splat(tol as f32 + 1e-3) + ext * 1e-4 + mag * (8.0 * f32::EPSILON);
+        let err = smax * (c(r1.x.max(r1.y)) + mag * c(r1.z)) + mag * c(2.0 * f32::EPSILON);
+        let pad = err + c(tol as f32 + 1e-3) + ext * c(1e-4) + mag * c(8.0 * f32::EPSILON);
         // The candidate pixels, clamped to the ranges (exact small integers in f32).
-        let x0 = (lx - pad).ceil().max(Vec4::splat(xs[0] as f32));
-        let x1 = (hx + pad).floor().min(Vec4::splat(xs[1] as f32));
-        let y0 = (ly - pad).ceil().max(Vec4::splat(ys[0] as f32));
-        let y1 = (hy + pad).floor().min(Vec4::splat(ys[1] as f32));
+        let x0 = (lx - pad).ceil().max(c(xs[0] as f32));
+        let x1 = (hx + pad).floor().min(c(xs[1] as f32));
+        let y0 = (ly - pad).ceil().max(c(ys[0] as f32));
+        let y1 = (hy + pad).floor().min(c(ys[1] as f32));
         // Lanes with a candidate (NaN compares false: no candidate, but such lanes are behind).
         let some = x0.cmple(x1) & y0.cmple(y1);
-        // The edge test, four-wide, for lanes with one or two candidate pixels, `(x0, y0)` and
+        // The edge test, lane-wise, for lanes with one or two candidate pixels, `(x0, y0)` and
         // `(x1, y1)` (tiny triangles: the case that matters); lanes with more are kept
         // untested, as are near-degenerate projections (area below 1% of the extent squared,
         // and NaN). Inward edge normals `n` (counter-clockwise after orienting by the area's
         // sign); `p` is within `pad` of edge line `k` iff `s = n·(p − a) ≥ 0` or
         // `s² ≤ pad²·|n|²`.
-        let few = ((x1 - x0) + (y1 - y0)).cmple(Vec4::ONE);
+        let few = ((x1 - x0) + (y1 - y0)).cmple(c(1.0));
         let area2 = (qx[1] - qx[0]) * (qy[2] - qy[0]) - (qy[1] - qy[0]) * (qx[2] - qx[0]);
-        let thin = !area2.abs().cmpge(ext * ext * 0.01) | ext.cmpeq(Vec4::ZERO);
+        let thin = !area2.abs().cmpge(ext * ext * c(0.01)) | ext.cmpeq(c(0.0));
         let sgn = area2.signum();
         let pad2 = pad * pad;
-        let (mut in0, mut in1) = (BVec4A::splat(true), BVec4A::splat(true));
+        let (mut in0, mut in1) = (L::mask_splat(true), L::mask_splat(true));
         for k in 0..3 {
             let (ax, ay) = (qx[k], qy[k]);
             let (bx, by) = (qx[(k + 1) % 3], qy[(k + 1) % 3]);
             let (nx, ny) = ((ay - by) * sgn, (bx - ax) * sgn);
             let r2 = pad2 * (nx * nx + ny * ny);
             let s0 = nx * (x0 - ax) + ny * (y0 - ay);
-            in0 &= s0.cmpge(Vec4::ZERO) | (s0 * s0).cmple(r2);
+            in0 = in0 & (s0.cmpge(c(0.0)) | (s0 * s0).cmple(r2));
             let s1 = nx * (x1 - ax) + ny * (y1 - ay);
-            in1 &= s1.cmpge(Vec4::ZERO) | (s1 * s1).cmple(r2);
+            in1 = in1 & (s1.cmpge(c(0.0)) | (s1 * s1).cmple(r2));
         }
         // Lanes whose one or two candidates were edge-tested keep those that passed (the two
         // candidates of a two-pixel rectangle are its ends); lanes without a candidate, or
@@ -323,47 +337,52 @@ impl PixelProjection {
         let only0 = tested & in0 & !in1;
         let only1 = tested & in1 & !in0;
         let none = !some | (tested & !in0 & !in1);
-        let pick = |m: BVec4A, a: Vec4, b: Vec4| Vec4::select(m, a, b);
-        let (one, zero) = (Vec4::ONE, Vec4::ZERO);
-        let full = |v: i64| Vec4::splat(v as f32);
+        let pick = L::select;
+        let (one, zero) = (c(1.0), c(0.0));
+        let full = |v: i64| c(v as f32);
         RectLanes {
             x0: pick(behind, full(xs[0]), pick(none, one, pick(only1, x1, x0))),
             x1: pick(behind, full(xs[1]), pick(none, zero, pick(only0, x0, x1))),
             y0: pick(behind, full(ys[0]), pick(none, one, pick(only1, y1, y0))),
             y1: pick(behind, full(ys[1]), pick(none, zero, pick(only0, y0, y1))),
-            behind: behind.bitmask(),
+            behind: L::bitmask(behind),
         }
     }
 }
 
-/// [`PixelProjection::triangle_rects_lanes`]'s result: the four rectangles' bounds per lane,
-/// exact small integers in f32 (empty when `x0 > x1` or `y0 > y1`); lanes behind the eye, in
+/// [`PixelProjection::triangle_rects_wide`]'s result: the rectangles' bounds per lane, exact
+/// small integers in f32 (empty when `x0 > x1` or `y0 > y1`); lanes behind the eye, in
 /// `behind`, hold the ranges (as f32: exact up to 2^24).
 #[derive(Clone, Copy, Debug)]
-pub struct RectLanes {
+pub struct RectLanes<L = Vec4> {
     /// Lowest column.
-    pub x0: Vec4,
+    pub x0: L,
     /// Highest column.
-    pub x1: Vec4,
+    pub x1: L,
     /// Lowest row.
-    pub y0: Vec4,
+    pub y0: L,
     /// Highest row.
-    pub y1: Vec4,
+    pub y1: L,
     /// Lanes reaching behind the eye (bit per lane).
     pub behind: u32,
 }
 
-impl RectLanes {
+impl<L: Lanes> RectLanes<L> {
     /// Bit `l` set when lane `l`'s rectangle is not empty.
-    #[inline]
+    #[inline(always)]
     pub fn nonempty(&self) -> u32 {
-        (self.x0.cmple(self.x1) & self.y0.cmple(self.y1)).bitmask()
+        L::bitmask(self.x0.cmple(self.x1) & self.y0.cmple(self.y1))
     }
 
     /// Lane `l` as `[x0, x1, y0, y1]`.
-    #[inline]
+    #[inline(always)]
     pub fn lane(&self, l: usize) -> [f32; 4] {
-        [self.x0[l], self.x1[l], self.y0[l], self.y1[l]]
+        [
+            self.x0.lane(l),
+            self.x1.lane(l),
+            self.y0.lane(l),
+            self.y1.lane(l),
+        ]
     }
 }
 
@@ -610,6 +629,91 @@ mod tests {
                 "culled {culled}, hit {hit}, one-pixel rectangles {small}"
             );
         }
+    }
+
+    /// Eight lanes give the rectangles four do, bit for bit, also when compiled for AVX2 (the
+    /// path `dacrt` takes on such CPUs): ordinary, tiny, huge, degenerate, behind-the-eye,
+    /// eye-plane and NaN triangles.
+    #[test]
+    fn rect_lanes_agree_at_every_width() {
+        use crate::geom::lanes::{F32x8, Lanes, Wide};
+        let c = Camera {
+            eye: Vec3::new(0.3, 0.2, 4.0),
+            look: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_deg: 50.0,
+        };
+        let (p, _) = fit_camera(&c, 64, 48);
+        let (xs, ys) = ([0, 63], [8, 23]);
+        let lanes =
+            |tri: &[[Vec3; 3]], k: usize, a: usize| Wide(std::array::from_fn(|l| tri[l][k][a]));
+        let wide = |tri: &[[Vec3; 3]]| -> [[F32x8; 3]; 3] {
+            std::array::from_fn(|k| std::array::from_fn(|a| lanes(tri, k, a)))
+        };
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        fn avx2(p: &PixelProjection, v: [[F32x8; 3]; 3], ys: [i64; 2]) -> RectLanes<F32x8> {
+            p.triangle_rects_wide(v, 0.01, [0, 63], ys)
+        }
+        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+        let mut kinds = [0usize; 3];
+        for round in 0..4000 {
+            let tri: [[Vec3; 3]; 8] = std::array::from_fn(|_| {
+                let mid = Vec3::new(
+                    rng.gen_range(-3.0..3.0),
+                    rng.gen_range(-3.0..3.0),
+                    rng.gen_range(-3.0..6.0),
+                );
+                let s = 10f32.powf(rng.gen_range(-6.0..1.0));
+                let mut t: [Vec3; 3] = std::array::from_fn(|_| {
+                    mid + s * Vec3::new(
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                    )
+                });
+                match rng.gen_range(0..12) {
+                    0 => t = [mid; 3],
+                    1 => t[1] = t[0],
+                    2 => t[2].z = c.eye.z,
+                    3 => t[0] = Vec3::splat(1e30),
+                    4 if round % 50 == 0 => t[1].y = f32::NAN,
+                    _ => {}
+                }
+                t
+            });
+            let four: [RectLanes; 2] = std::array::from_fn(|h| {
+                p.triangle_rects_lanes(std::array::from_fn(|l| tri[4 * h + l]), 0.01, xs, ys)
+            });
+            let mut eights = vec![p.triangle_rects_wide(wide(&tri), 0.01, xs, ys)];
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked on the line above).
+                eights.push(unsafe { avx2(&p, wide(&tri), ys) });
+            }
+            for e in &eights {
+                for l in 0..8 {
+                    let f = &four[l / 4];
+                    assert_eq!(e.lane(l), f.lane(l % 4), "{:?}", tri[l]);
+                    assert_eq!(e.behind >> l & 1, f.behind >> (l % 4) & 1);
+                }
+                assert_eq!(e.nonempty(), four[0].nonempty() | four[1].nonempty() << 4);
+            }
+            for l in 0..8 {
+                let f = &four[l / 4];
+                let k = if f.behind >> (l % 4) & 1 != 0 {
+                    0
+                } else if f.nonempty() >> (l % 4) & 1 != 0 {
+                    1
+                } else {
+                    2
+                };
+                kinds[k] += 1;
+            }
+        }
+        // Every outcome occurs often: behind the eye, a rectangle, culled.
+        assert!(kinds.iter().all(|&k| k > 1000), "{kinds:?}");
+        let _ = F32x8::N;
     }
 
     /// The rectangle holds the pixel of every ray that meets the box (brute force over random

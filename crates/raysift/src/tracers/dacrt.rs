@@ -117,10 +117,12 @@
 //! culling allocate nothing.
 
 use crate::error::Result;
+use crate::geom::lanes::{self, F32x8, Lanes, Width};
 use crate::geom::{
     intersect_triangle, intersect_triangle4, tri_box_edge_axes, Aabb, Cone, ConeQuery, PackedRay,
     PixelProjection, Tri4, TriFromOrigin,
 };
+use crate::mem::reserve_exact_huge;
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
 use crate::scene::{Scene, TriangleSoup};
 use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
@@ -285,8 +287,7 @@ impl Scratch {
 
 /// `v`, emptied, with room for `n` (allocating exactly `n` when it has less room).
 fn reuse<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
-    v.clear();
-    v.reserve_exact(n);
+    reserve_exact_huge(&mut v, n);
     v
 }
 
@@ -617,6 +618,90 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         self.tri_idx.len()
     }
 
+    /// [`Self::project_lanes`] eight triangles at a time, compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 ([`lanes::width`] is [`Width::Eight`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn project_avx2(
+        &mut self,
+        proj: &PixelProjection,
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+        cull: bool,
+    ) -> (usize, f64) {
+        self.project_lanes::<F32x8>(proj, tol, xs, ys, cull)
+    }
+
+    /// [`Self::project_triangles`]' pass over the triangles, `L::N` at a time: pushes the kept
+    /// triangles to `tri_idx` and (tile leaves) every triangle's rectangle to `rects`; returns
+    /// the non-degenerate count and the kept rectangles' total area.
+    #[inline(always)]
+    fn project_lanes<L: Lanes>(
+        &mut self,
+        proj: &PixelProjection,
+        tol: f64,
+        xs: [i64; 2],
+        ys: [i64; 2],
+        cull: bool,
+    ) -> (usize, f64) {
+        let tris = self.tris;
+        let n = tris.len();
+        let idx = &mut self.tri_idx;
+        let rects = &mut self.rects;
+        let tile_leaves = self.tile_leaves;
+        let mut area = 0.0f64;
+        let mut live_count = 0;
+        let row0 = ys[0] as f32;
+        let lane = L::from_fn(|l| l as f32);
+        // `L::N` at a time (a short last group repeats its last triangle).
+        for t0 in (0..n).step_by(L::N) {
+            let m = (n - t0).min(L::N);
+            let at = |l: usize| (t0 + l).min(n - 1);
+            let lanes = |c: &[Vec3]| {
+                [
+                    L::from_fn(|l| c[at(l)].x),
+                    L::from_fn(|l| c[at(l)].y),
+                    L::from_fn(|l| c[at(l)].z),
+                ]
+            };
+            let v = [lanes(&tris.v0), lanes(&tris.v1), lanes(&tris.v2)];
+            // Degenerate (one point, as in `prepare`): never hit.
+            let same = |a: usize| v[0][a].cmpeq(v[1][a]) & v[1][a].cmpeq(v[2][a]);
+            let live = !(same(0) & same(1) & same(2)) & lane.cmple(L::splat((m - 1) as f32));
+            let live = L::bitmask(live);
+            live_count += live.count_ones() as usize;
+            let r = proj.triangle_rects_wide::<L>(v, tol, xs, ys);
+            let kept = r.nonempty() & live;
+            // Lane by lane: a vector transpose and select here made the AVX2 loop 10% slower.
+            for l in 0..m {
+                let q = r.lane(l);
+                if kept >> l & 1 != 0 {
+                    // Exact small integers: the pixel ranges are below 2^16.
+                    area += (q[1] - q[0] + 1.0) as f64 * (q[3] - q[2] + 1.0) as f64;
+                }
+                if tile_leaves {
+                    // Task-local rows; the ranges fit in u16 (tile leaves need both image
+                    // dimensions at most 2^16). Pushed in triangle order (`rects[t]`), no zero
+                    // fill first.
+                    rects.push(if kept >> l & 1 != 0 {
+                        [q[0], q[1], q[2] - row0, q[3] - row0].map(|v| v as u16)
+                    } else {
+                        [1, 0, 1, 0]
+                    });
+                }
+            }
+            let mut keep = if cull { kept } else { live };
+            while keep != 0 {
+                idx.push(t0 as u32 + keep.trailing_zeros());
+                keep &= keep - 1;
+            }
+        }
+        (live_count, area)
+    }
+
     /// [`Self::live_triangles`] for a task with a projection: fills `tri_idx` with the
     /// non-degenerate triangles, projected onto the task's pixels (rows `ys`) on the way,
     /// scene order: with `cull` (`Config::pixel_cull`), only the triangles some pixel's ray of
@@ -634,53 +719,16 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return self.live_triangles();
         };
         let xs = [0, width as i64 - 1];
-        let tris = self.tris;
-        let n = tris.len();
         self.tri_idx.clear();
-        let idx = &mut self.tri_idx;
-        let rects = &mut self.rects;
-        let tile_leaves = self.tile_leaves;
-        let mut area = 0.0f64;
-        let mut live_count = 0;
-        let row0 = Vec4::splat(ys[0] as f32);
-        // Four at a time (a short last group repeats its last triangle).
-        for t0 in (0..n).step_by(4) {
-            let m = (n - t0).min(4);
-            let mut v = [[Vec3::ZERO; 3]; 4];
-            let mut live = 0;
-            for (l, v) in v.iter_mut().enumerate() {
-                let t = (t0 + l).min(n - 1);
-                *v = [tris.v0[t], tris.v1[t], tris.v2[t]];
-                // Degenerate (one point, as in `prepare`): never hit.
-                live |= ((l < m && !(v[0] == v[1] && v[1] == v[2])) as u32) << l;
-            }
-            live_count += live.count_ones() as usize;
-            let r = proj.triangle_rects_lanes(v, tol, xs, ys);
-            let kept = r.nonempty() & live;
-            let lanes = BVec4A::from_array(std::array::from_fn(|l| kept >> l & 1 != 0));
-            // Exact small integers (f32): the pixel ranges are below 2^16.
-            let a = (r.x1 - r.x0 + Vec4::ONE) * (r.y1 - r.y0 + Vec4::ONE);
-            area += Vec4::select(lanes, a, Vec4::ZERO).element_sum() as f64;
-            if tile_leaves {
-                // Task-local rows; the ranges fit in u16 (tile leaves need both image
-                // dimensions at most 2^16). Lanes: columns of the transpose. Pushed in
-                // triangle order (`rects[t]`), no zero fill first.
-                let c = Mat4::from_cols(r.x0, r.x1, r.y0 - row0, r.y1 - row0).transpose();
-                for l in 0..m {
-                    rects.push(if kept >> l & 1 != 0 {
-                        c.col(l).to_array().map(|v| v as u16)
-                    } else {
-                        [1, 0, 1, 0]
-                    });
-                }
-            }
-            let keep = if cull { kept } else { live };
-            for l in 0..m {
-                if keep >> l & 1 != 0 {
-                    idx.push((t0 + l) as u32);
-                }
-            }
-        }
+        #[cfg(target_arch = "x86_64")]
+        let (live_count, area) = match lanes::width() {
+            // SAFETY: `project_avx2` needs AVX2; `width()` is `Eight` only on CPUs that have it.
+            Width::Eight => unsafe { self.project_avx2(proj, tol, xs, ys, cull) },
+            Width::Four => self.project_lanes::<Vec4>(proj, tol, xs, ys, cull),
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let (live_count, area) = self.project_lanes::<Vec4>(proj, tol, xs, ys, cull);
+        let idx = &self.tri_idx;
         let k = idx.len();
         self.st.tri_box += live_count as u64;
         // Leaves of tiny triangles cost about one pair per pixel they cover, so they can be
@@ -1474,8 +1522,7 @@ fn morton_order(mut v: Vec<u64>, rays: &RayBatch, range: Range<usize>, bounds: &
         (x | x << 2) & 0x0924_9249
     }
     let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
-    v.clear();
-    v.reserve_exact(range.len());
+    reserve_exact_huge(&mut v, range.len());
     v.extend(range.clone().enumerate().map(|(k, i)| {
         let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
         let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
@@ -1558,8 +1605,7 @@ fn tile_ordered_rays(
     width: usize,
     rows: usize,
 ) -> Vec<Vec4> {
-    v.clear();
-    v.reserve_exact(width.div_ceil(8) * rows.div_ceil(8) * 64);
+    reserve_exact_huge(&mut v, width.div_ceil(8) * rows.div_ceil(8) * 64);
     for ty in 0..rows.div_ceil(8) {
         for tx in 0..width.div_ceil(8) {
             for bit in 0..64 {
@@ -1884,10 +1930,10 @@ impl Dacrt {
                     task.tmin0 = tmin0;
                     let tr = std::mem::take(&mut task.tile_rays);
                     task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
-                    task.rects.reserve_exact(ntri);
-                    task.touched.reserve_exact(ncones);
+                    reserve_exact_huge(&mut task.rects, ntri);
+                    reserve_exact_huge(&mut task.touched, ncones);
                     task.touched.resize(ncones, 0);
-                    task.touched_list.reserve_exact(ncones);
+                    reserve_exact_huge(&mut task.touched_list, ncones);
                 }
                 if self.cfg.pixel_cull || task.tile_leaves {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
@@ -1902,9 +1948,9 @@ impl Dacrt {
             }
         }
         if !task.tile_leaves {
-            task.ray_idx.reserve_exact(len);
+            reserve_exact_huge(&mut task.ray_idx, len);
             task.ray_idx.resize(len, 0);
-            task.recs.reserve_exact(len);
+            reserve_exact_huge(&mut task.recs, len);
             task.recs.resize(len, RayRec::default());
         }
         task.st.peak_bytes = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
@@ -2008,8 +2054,7 @@ impl Tracer for Dacrt {
         let tris = scene.triangles();
         let n = tris.len();
         for v in &mut self.span {
-            v.clear();
-            v.reserve_exact(n);
+            reserve_exact_huge(v, n);
         }
         for t in 0..n {
             let [a, b, c] = tris.get(t);
