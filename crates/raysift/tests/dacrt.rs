@@ -30,6 +30,7 @@ fn configs() -> Vec<Vec<(String, String)>> {
             ("split_sample_threshold", "64"),
             ("split_sample_stride", "3"),
             ("max_depth", "40"),
+            ("leaf_pairs", "0"),
             ("max_cone_deg", "60"),
             ("max_shadow_cone_deg", "60"),
             ("pixel_leaf_c_limit", "1"),
@@ -46,6 +47,14 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("pixel_cull", "false"),
         ("pixel_leaf", "false"),
     ]));
+    // The paper's leaf rule: any cell with fewer than `r_limit` rays is a naive leaf.
+    for mode in ["ray", "random"] {
+        out.push(opts(&[
+            ("mode", mode),
+            ("tasks", "2"),
+            ("leaf_pairs", &usize::MAX.to_string()),
+        ]));
+    }
     out.push(opts(&[
         ("mode", "packet"),
         ("tasks", "1"),
@@ -515,6 +524,32 @@ fn dacrt_sampled_split_on_a_large_soup() {
             st.ray_tri < rays.len() as u64 * s.len() as u64 / 50,
             "{mode}: {st:?}"
         );
+    }
+}
+
+/// Few incoherent rays against many triangles: the paper's rule ends the recursion at once
+/// (fewer than `r_limit` rays) in a naive leaf of every triangle; `leaf_pairs` divides on and
+/// tests a small fraction of the pairs, with the same hits.
+#[test]
+fn dacrt_sparse_rays_divide_on() {
+    let s = Arc::new(procedural::icosphere(20_000));
+    let rays = random_in_box(&s.bounds(), 15, 5);
+    let mut naive = tracers::create("naive", &[]).unwrap();
+    naive.prepare(s.clone()).unwrap();
+    let (want, _) = naive.intersect_timed(&rays);
+    let run = |kv: &[(&str, &str)]| {
+        let mut d = tracers::create("dacrt", &opts(kv)).unwrap();
+        d.prepare(s.clone()).unwrap();
+        let (got, st) = d.intersect_timed(&rays);
+        same_hits(&want, &got, &format!("{kv:?}"));
+        st
+    };
+    for mode in ["ray", "random"] {
+        let paper = run(&[("mode", mode), ("leaf_pairs", &usize::MAX.to_string())]);
+        let ours = run(&[("mode", mode)]);
+        assert_eq!(paper.ray_tri, 15 * s.len() as u64, "{paper:?}");
+        assert!(ours.ray_tri * 20 < paper.ray_tri, "{ours:?} vs {paper:?}");
+        assert!(ours.nodes > paper.nodes, "{ours:?} vs {paper:?}");
     }
 }
 

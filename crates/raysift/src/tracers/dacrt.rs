@@ -9,7 +9,8 @@
 //!   partitioning the parent's prefix (children are prefixes). The second child tests only the
 //!   first child's survivors: what the first child rejected lies in the second (the cell is
 //!   their union) and joins it untested (`gather_block`). Naive leaf when `rays < r_limit` or
-//!   `triangles < p_limit`.
+//!   `triangles < p_limit`, except that a cell whose naive leaf would test more than
+//!   `leaf_pairs` pairs is divided further (ours, see `Config::leaf_pairs`).
 //! - **Early ray termination** (§3.2): finished rays are swapped into the global prefix
 //!   `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is final;
 //!   see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch of the
@@ -154,6 +155,14 @@ pub struct Config {
     pub r_limit: usize,
     /// Naive leaf when fewer triangles than this (paper: 16). Default 16.
     pub p_limit: usize,
+    /// A cell with fewer than `r_limit` rays is still divided while its naive leaf would test
+    /// more than this many ray/triangle pairs (ours: the paper's rule makes a naive leaf of 19
+    /// rays and thousands of triangles, which sparse incoherent batches, such as a path
+    /// tracer's bounces off an open mesh, reach everywhere). `usize::MAX` is the paper's rule.
+    /// Default 200: 79K diffuse bounce rays off the 871K dragon, 313 → 162 ms (ray/triangle
+    /// tests 17.7M → 6.9M; 2000: 240 ms, 50: 176 ms); 1M random rays and 1M shadow rays
+    /// unchanged.
+    pub leaf_pairs: usize,
     /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
     /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
     pub c_limit: usize,
@@ -213,6 +222,7 @@ impl Default for Config {
         Self {
             r_limit: 20,
             p_limit: 16,
+            leaf_pairs: 200,
             c_limit: 16,
             sat_threshold: 0,
             split_sample_threshold: 10_000,
@@ -891,7 +901,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         if nr == 0 || nt == 0 {
             return;
         }
-        if nr < self.cfg.r_limit || nt < self.cfg.p_limit || depth >= self.cfg.max_depth {
+        if (nr < self.cfg.r_limit && nr * nt <= self.cfg.leaf_pairs)
+            || nt < self.cfg.p_limit
+            || depth >= self.cfg.max_depth
+        {
             return self.leaf(&cell, nt, rend, ord);
         }
         let Some((axis, split)) = self.choose_split(&cell, nt) else {
