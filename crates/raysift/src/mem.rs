@@ -10,12 +10,14 @@
 /// Buffers smaller than this stay on ordinary pages: a huge page would not fit inside them.
 const HUGE: usize = 2 << 20;
 
-/// Empties `v` and gives it room for exactly `n` more elements (keeping a larger allocation), then
-/// asks that the room be backed by huge pages before anything touches it.
-pub(crate) fn reserve_exact_huge<T>(v: &mut Vec<T>, n: usize) {
+/// Empties `v` and gives it room for exactly `n` more elements (keeping a larger allocation),
+/// then, with `huge`, asks that the room be backed by huge pages before anything touches it.
+pub(crate) fn reserve_exact_huge<T>(v: &mut Vec<T>, n: usize, huge: bool) {
     v.clear();
     v.reserve_exact(n);
-    advise_huge(v);
+    if huge {
+        advise_huge(v);
+    }
 }
 
 /// Asks the kernel to back `v`'s whole allocation with huge pages (best effort: errors are ignored,
@@ -52,7 +54,7 @@ mod tests {
         // ordinary vectors afterwards.
         for n in [0usize, 10, 1 << 21] {
             let mut v: Vec<u32> = vec![7; 3];
-            reserve_exact_huge(&mut v, n);
+            reserve_exact_huge(&mut v, n, n % 2 == 0);
             assert!(v.is_empty() && v.capacity() >= n);
             v.extend((0..n as u32).map(|i| i ^ 0x5a5a));
             assert!(v.iter().enumerate().all(|(i, &x)| x == i as u32 ^ 0x5a5a));

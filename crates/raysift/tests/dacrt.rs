@@ -78,6 +78,7 @@ fn configs() -> Vec<Vec<(String, String)>> {
         ("mode", "packet"),
         ("tasks", "1"),
         ("pixel_leaf", "false"),
+        ("huge_pages", "false"),
     ]));
     out
 }

@@ -52,8 +52,8 @@
 //! - **Pixel culling** (ours, `Config::pixel_cull`): before dividing, the triangles whose
 //!   projection covers no pixel centre of the task's image rows are dropped: no ray of the
 //!   batch can hit them (an empty rectangle from
-//!   [`crate::geom::PixelProjection::triangle_rects_lanes`], four-wide, with a rounding
-//!   bound). Meshes denser than the image are mostly such triangles: over two
+//!   [`crate::geom::PixelProjection::triangle_rects_wide`], four or eight lanes, with a
+//!   rounding bound). Meshes denser than the image are mostly such triangles: over two
 //!   thirds of the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 37M; its
 //!   frame through the harness went from 827 to 573 ms with this and the cone skip above),
 //!   a third of the 871K dragon (about even there: the cull costs what it saves).
@@ -86,6 +86,11 @@
 //!   (gathering in chunks for them measured ~15% slower on random rays).
 //! - **Threads**: as in the paper's path tracer, rayon tasks own disjoint shares of the rays
 //!   (bands of tile rows for camera rays) and their own index lists.
+//! - **Width and pages** (ours): the projection of every triangle is written once over
+//!   [`crate::geom::lanes::Lanes`] and runs eight triangles at a time in AVX2 code when the CPU
+//!   has it (checked at run time; dragon frame 116 → 110 ms, the same rectangles bit for bit),
+//!   four elsewhere; the per-call buffers and min/max lists ask for transparent huge pages
+//!   (`Config::huge_pages`: a first frame's page faults, dragon 133 → 125 ms).
 //!
 //! Correctness is bit-exact with `naive`: every candidate pair goes through the shared
 //! [`intersect_triangle`] (or its bit-equal four-wide form) and [`closer`], and every filter
@@ -215,6 +220,13 @@ pub struct Config {
     /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
     /// pixels; see `Task::project_triangles`). Default 256.
     pub pixel_leaf_c_limit: usize,
+    /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
+    /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults and
+    /// TLB misses (the dragon's first frame in a process 133 → 125 ms). With the kernel's
+    /// default `defrag=madvise`, a fragmented machine may compact memory synchronously on first
+    /// touch (seen twice in about thirty fresh processes: +110 and +140 ms); `false` trades the
+    /// gain for no such stall. Default true.
+    pub huge_pages: bool,
 }
 
 impl Default for Config {
@@ -237,6 +249,7 @@ impl Default for Config {
             pixel_cull: true,
             pixel_leaf: true,
             pixel_leaf_c_limit: 256,
+            huge_pages: true,
         }
     }
 }
@@ -296,8 +309,8 @@ impl Scratch {
 }
 
 /// `v`, emptied, with room for `n` (allocating exactly `n` when it has less room).
-fn reuse<T>(mut v: Vec<T>, n: usize) -> Vec<T> {
-    reserve_exact_huge(&mut v, n);
+fn reuse<T>(mut v: Vec<T>, n: usize, huge: bool) -> Vec<T> {
+    reserve_exact_huge(&mut v, n, huge);
     v
 }
 
@@ -1526,7 +1539,13 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 /// The shadow-packet order of rays `range` (see [`Task::perm`]): sorted by a 30-bit Morton code
 /// of the origin in `bounds` (in place, no further allocation), then each entry's high half is
 /// overwritten with the inverse permutation.
-fn morton_order(mut v: Vec<u64>, rays: &RayBatch, range: Range<usize>, bounds: &Aabb) -> Vec<u64> {
+fn morton_order(
+    mut v: Vec<u64>,
+    rays: &RayBatch,
+    range: Range<usize>,
+    bounds: &Aabb,
+    huge: bool,
+) -> Vec<u64> {
     fn spread(x: u32) -> u64 {
         let mut x = (x & 0x3ff) as u64;
         x = (x | x << 16) & 0x0300_00ff;
@@ -1535,7 +1554,7 @@ fn morton_order(mut v: Vec<u64>, rays: &RayBatch, range: Range<usize>, bounds: &
         (x | x << 2) & 0x0924_9249
     }
     let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
-    reserve_exact_huge(&mut v, range.len());
+    reserve_exact_huge(&mut v, range.len(), huge);
     v.extend(range.clone().enumerate().map(|(k, i)| {
         let q = ((rays.origin(i) - bounds.min) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
         let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
@@ -1617,8 +1636,9 @@ fn tile_ordered_rays(
     base: usize,
     width: usize,
     rows: usize,
+    huge: bool,
 ) -> Vec<Vec4> {
-    reserve_exact_huge(&mut v, width.div_ceil(8) * rows.div_ceil(8) * 64);
+    reserve_exact_huge(&mut v, width.div_ceil(8) * rows.div_ceil(8) * 64, huge);
     for ty in 0..rows.div_ceil(8) {
         for tx in 0..width.div_ceil(8) {
             for bit in 0..64 {
@@ -1812,6 +1832,7 @@ impl Dacrt {
     ) -> Stats {
         let ntri = scene.len();
         let len = range.len();
+        let huge = self.cfg.huge_pages;
         // Restrict the packet layout to this task's share (the last band may be shorter).
         let packets = match (plan.packets, packets) {
             (true, Packets::Tiles { width, tw, .. }) => Packets::Tiles {
@@ -1833,8 +1854,8 @@ impl Dacrt {
             .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
             .unwrap_or_default();
         // Filled by `live_triangles`.
-        let tri_idx = reuse(sc.tri_idx, ntri);
-        let mut cones = reuse(sc.cones, ncones);
+        let tri_idx = reuse(sc.tri_idx, ntri, huge);
+        let mut cones = reuse(sc.cones, ncones, huge);
         cones.resize(
             ncones,
             PackedCone {
@@ -1842,9 +1863,9 @@ impl Dacrt {
                 done: 0,
             },
         );
-        let mut perm = reuse(sc.perm, 0);
+        let mut perm = reuse(sc.perm, 0, huge);
         if let Packets::Runs { .. } = packets {
-            perm = morton_order(perm, rays, range.clone(), &scene.bounds());
+            perm = morton_order(perm, rays, range.clone(), &scene.bounds(), huge);
         }
         let mut task = Task::<ANY> {
             cfg: &self.cfg,
@@ -1858,8 +1879,8 @@ impl Dacrt {
             v,
             occ,
             tri_idx,
-            ray_idx: reuse(sc.ray_idx, 0),
-            recs: reuse(sc.recs, 0),
+            ray_idx: reuse(sc.ray_idx, 0, huge),
+            recs: reuse(sc.recs, 0, huge),
             rterm: 0,
             terminate: plan.terminate,
             view: plan.view,
@@ -1870,17 +1891,17 @@ impl Dacrt {
             row0: 0,
             cones_built: true,
             cones,
-            cone_idx: reuse(sc.cone_idx, ncones),
+            cone_idx: reuse(sc.cone_idx, ncones, huge),
             perm,
             cterm: 0,
             tile_leaves: false,
             leaf_tiles: self.cfg.pixel_leaf_c_limit,
             // Filled by the projection pass, in triangle order.
-            rects: reuse(sc.rects, 0),
-            tile_rays: reuse(sc.tile_rays, 0),
+            rects: reuse(sc.rects, 0, huge),
+            tile_rays: reuse(sc.tile_rays, 0, huge),
             tmin0: 0.0,
-            touched: reuse(sc.touched, 0),
-            touched_list: reuse(sc.touched_list, 0),
+            touched: reuse(sc.touched, 0, huge),
+            touched_list: reuse(sc.touched_list, 0, huge),
             st: Stats::default(),
         };
         task.st.rays = len as u64;
@@ -1942,11 +1963,11 @@ impl Dacrt {
                     task.tile_leaves = true;
                     task.tmin0 = tmin0;
                     let tr = std::mem::take(&mut task.tile_rays);
-                    task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows);
-                    reserve_exact_huge(&mut task.rects, ntri);
-                    reserve_exact_huge(&mut task.touched, ncones);
+                    task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows, huge);
+                    reserve_exact_huge(&mut task.rects, ntri, huge);
+                    reserve_exact_huge(&mut task.touched, ncones, huge);
                     task.touched.resize(ncones, 0);
-                    reserve_exact_huge(&mut task.touched_list, ncones);
+                    reserve_exact_huge(&mut task.touched_list, ncones, huge);
                 }
                 if self.cfg.pixel_cull || task.tile_leaves {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
@@ -1961,9 +1982,9 @@ impl Dacrt {
             }
         }
         if !task.tile_leaves {
-            reserve_exact_huge(&mut task.ray_idx, len);
+            reserve_exact_huge(&mut task.ray_idx, len, huge);
             task.ray_idx.resize(len, 0);
-            reserve_exact_huge(&mut task.recs, len);
+            reserve_exact_huge(&mut task.recs, len, huge);
             task.recs.resize(len, RayRec::default());
         }
         task.st.peak_bytes = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
@@ -2066,8 +2087,9 @@ impl Tracer for Dacrt {
     fn prepare(&mut self, scene: Arc<Scene>) -> Result<Stats> {
         let tris = scene.triangles();
         let n = tris.len();
+        let huge = self.cfg.huge_pages;
         for v in &mut self.span {
-            reserve_exact_huge(v, n);
+            reserve_exact_huge(v, n, huge);
         }
         for t in 0..n {
             let [a, b, c] = tris.get(t);
@@ -2225,6 +2247,7 @@ mod tests {
             &rays,
             0..1000,
             &Aabb::new(Vec3::ZERO, Vec3::ONE),
+            true,
         );
         for (packets, n) in [
             (
