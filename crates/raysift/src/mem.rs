@@ -1,13 +1,14 @@
 //! Large per-call buffers backed by transparent huge pages.
 //!
-//! DACRT's buffers (the per-axis span lists of §3.5, the ray and tile records) are tens of
-//! megabytes written once per call. Backed by 4 KiB pages, the first call pays one page fault per
-//! 4 KiB (about a tenth of a cold dragon frame) and the memory-bound leaves pay TLB misses; 2 MiB
-//! pages cut both. Linux gives them to a range on request (`madvise(MADV_HUGEPAGE)`, the mode most
-//! distributions ship, "madvise"), as Embree asks for its own build memory. Elsewhere this is a
-//! no-op.
+//! DACRT's buffers (the per-axis min/max lists of Mora 2011 §3.5, the ray and tile records) are
+//! tens of megabytes written once per call. Backed by 4 KiB pages, the first call pays a page
+//! fault per 4 KiB (8–10 ms of the dragon's 133 ms first frame); 2 MiB pages cut that. Linux gives
+//! them to a range on request (`madvise(MADV_HUGEPAGE)`, under the THP mode most distributions
+//! ship, "madvise"), as Embree asks for its own build memory. The price: on a fragmented machine
+//! the kernel may compact memory synchronously at first touch (DACRT's `huge_pages` option turns
+//! the request off). Elsewhere than Linux this is a no-op.
 
-/// Buffers smaller than this stay on ordinary pages: a huge page would not fit inside them.
+/// The huge page size (x86-64 and most aarch64 kernels): only whole, aligned ones are advised.
 const HUGE: usize = 2 << 20;
 
 /// Empties `v` and gives it room for exactly `n` more elements (keeping a larger allocation),

@@ -914,7 +914,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         if nr == 0 || nt == 0 {
             return;
         }
-        if (nr < self.cfg.r_limit && nr * nt <= self.cfg.leaf_pairs)
+        if (nr < self.cfg.r_limit && nr.saturating_mul(nt) <= self.cfg.leaf_pairs)
             || nt < self.cfg.p_limit
             || depth >= self.cfg.max_depth
         {
