@@ -2,9 +2,9 @@
 //!
 //! DACRT's buffers (the per-axis min/max lists of Mora 2011 §3.5, the ray and tile records) are
 //! tens of megabytes written once per call. Backed by 4 KiB pages, the first call pays a page
-//! fault per 4 KiB (8–10 ms of the dragon's 133 ms first frame); 2 MiB pages cut that. Linux gives
-//! them to a range on request (`madvise(MADV_HUGEPAGE)`, under the THP mode most distributions
-//! ship, "madvise"), as Embree asks for its own build memory. The price: on a fragmented machine
+//! fault per 4 KiB (about 10 ms of the dragon's 140 ms first frame); 2 MiB pages cut that.
+//! Linux gives them to a range on request (`madvise(MADV_HUGEPAGE)`, under the THP mode most
+//! distributions ship, "madvise"), as Embree asks for its own build memory. The price: on a fragmented machine
 //! the kernel may compact memory synchronously at first touch (DACRT's `huge_pages` option turns
 //! the request off). Elsewhere than Linux this is a no-op.
 
