@@ -222,12 +222,12 @@ pub struct Config {
     pub pixel_leaf_c_limit: usize,
     /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
     /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults.
-    /// Only a process's first call gains (warm calls reuse the buffers): the dragon's first
-    /// frame 141 → 128 ms, the 3.5M tile's prepare 57 → 36 ms and trace 212 → 201 ms, with the
-    /// thread pinned (`--pin`, as every benchmark runs). Unpinned, the tile's first trace was
-    /// 282–427 ms in 3 of 4 fresh processes against 203–209 without (the dragon's still
-    /// gained), and both settings saw rare stalls of 100+ ms in fresh processes on this
-    /// (virtual) machine. Default true.
+    /// Only a process's first call gains (warm calls reuse the buffers): with the thread pinned
+    /// (`--pin`, as every benchmark runs), the dragon's first frame 133 → 125 ms, the 3.5M
+    /// tile's prepare 57 → 36 ms and trace 212 → 201 ms. Unpinned, the dragon's first frame
+    /// still gained (141 → 128 ms) but the tile's first trace was 282–427 ms in 3 of 4 fresh
+    /// processes against 203–209 without, and both settings saw rare stalls of 100+ ms in fresh
+    /// processes on this (virtual) machine. Default true.
     pub huge_pages: bool,
 }
 
