@@ -15,7 +15,6 @@ use raysift::tracers;
 use raysift::Tracer;
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(Parser)]
@@ -285,7 +284,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Animate(a) => with_threads(a.tracer.threads, a.tracer.pin, || animate(&a)),
         Cmd::Export { scene, out } => export(&open_scene(&scene)?, &out),
         Cmd::Tracers => {
-            for n in tracers::NAMES {
+            for n in tracers::names() {
                 println!("{n}");
             }
             Ok(())
@@ -514,7 +513,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
         bail!("--repeat must be at least 1");
     }
     let mut tracer = make_tracer(&a.tracer)?;
-    let s = Arc::new(open_scene(&a.scene)?);
+    let mut s = open_scene(&a.scene)?;
     let rays = npy::read_rays(&a.rays)?;
     if rays.is_empty() {
         bail!("{}: no rays", a.rays.display());
@@ -539,12 +538,14 @@ fn trace(a: &TraceArgs) -> Result<()> {
             run + 1,
             a.repeat
         ));
-        let ps = tracer.prepare_timed(s.clone())?;
+        // Every run is a new frame of the same geometry: the tracer rebuilds (or updates).
+        s.touch();
+        let ps = tracer.prepare_timed(&s)?;
         let t0 = Instant::now();
         let mut ts = if a.occlusion {
-            tracer.occluded(&rays, &mut occ)
+            tracer.occluded(&s, &rays, &mut occ, None)?
         } else {
-            tracer.intersect(&rays, &mut hits)
+            tracer.intersect(&s, &rays, &mut hits, None)?
         };
         ts.trace_ms = t0.elapsed().as_secs_f64() * 1e3;
         pb.finish_and_clear();
@@ -593,7 +594,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
 
 fn render_cmd(a: &RenderArgs) -> Result<()> {
     let mut tracer = make_tracer(&a.tracer)?;
-    let s = Arc::new(open_scene_or_default(a.scene.as_deref())?);
+    let s = open_scene_or_default(a.scene.as_deref())?;
     let cam = camera_for(&s, &a.view)?;
     let t0 = Instant::now();
     let pb = spinner(format!(
@@ -602,7 +603,7 @@ fn render_cmd(a: &RenderArgs) -> Result<()> {
         a.view.width,
         a.view.height
     ));
-    let prep = tracer.prepare_timed(s.clone())?;
+    let prep = tracer.prepare_timed(&s)?;
     if a.integrator == "path" {
         return path_render(a, &s, tracer.as_ref(), &cam, &prep, t0, pb);
     }
@@ -614,7 +615,7 @@ fn render_cmd(a: &RenderArgs) -> Result<()> {
         a.view.height,
         a.shade,
         a.light,
-    );
+    )?;
     pb.finish_and_clear();
     img.save_png(&a.out)?;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -655,15 +656,15 @@ fn render_cmd(a: &RenderArgs) -> Result<()> {
                     "{name}: {} rays, {:.1} ms; per ray: {:.2} ray-box, {:.2} ray-tri, {:.2} nodes; totals: ray-box {}, ray-tri {}, tri-box {}, cone-box {}, nodes {}, leaves {}",
                     st.rays,
                     st.trace_ms,
-                    st.ray_box as f64 / r,
-                    st.ray_tri as f64 / r,
-                    st.nodes as f64 / r,
-                    st.ray_box,
-                    st.ray_tri,
-                    st.tri_box,
-                    st.cone_box,
-                    st.nodes,
-                    st.leaves
+                    st.work.get("ray_box") as f64 / r,
+                    st.work.get("ray_tri") as f64 / r,
+                    st.work.get("nodes") as f64 / r,
+                    st.work.get("ray_box"),
+                    st.work.get("ray_tri"),
+                    st.work.get("tri_box"),
+                    st.work.get("cone_box"),
+                    st.work.get("nodes"),
+                    st.work.get("leaves")
                 );
             }
         }
@@ -705,7 +706,7 @@ fn path_render(
         ..Default::default()
     };
     let (img, per_depth) =
-        render::path::path_trace(s, tracer, cam, a.view.width, a.view.height, &cfg);
+        render::path::path_trace(s, tracer, cam, a.view.width, a.view.height, &cfg)?;
     pb.finish_and_clear();
     img.save_png(&a.out)?;
     let rays: u64 = per_depth.iter().map(|b| b.rays).sum();
@@ -744,7 +745,7 @@ fn animate(a: &AnimateArgs) -> Result<()> {
     let base = open_scene_or_default(a.scene.as_deref())?;
     let mut anim = raysift::scene::animate::Animation::new(&base, a.motion)?;
     // Frame the whole motion: the union of the first and last frames' bounds.
-    let bounds = anim.at(0.0).bounds().union(anim.at(1.0).bounds());
+    let bounds = anim.at(0.0)?.bounds().union(anim.at(1.0)?.bounds());
     let mut cam = Camera::framing(
         &bounds,
         a.view.fov,
@@ -771,18 +772,18 @@ fn animate(a: &AnimateArgs) -> Result<()> {
             k as f32 / (a.frames - 1) as f32
         };
         let u0 = Instant::now();
-        let scene = Arc::new(anim.at(t).clone());
+        let scene = anim.at(t)?;
         let update_ms = u0.elapsed().as_secs_f64() * 1e3;
-        let prep = tracer.prepare_timed(scene.clone())?;
+        let prep = tracer.prepare_timed(scene)?;
         let (img, rs) = render::raycast(
-            &scene,
+            scene,
             tracer.as_ref(),
             &cam,
             a.view.width,
             a.view.height,
             a.shade,
             None,
-        );
+        )?;
         let trace_ms = rs.primary.trace_ms + rs.shadow.as_ref().map_or(0.0, |s| s.trace_ms);
         if !a.no_images {
             img.save_png(&a.out.join(format!("frame_{k:04}.png")))?;

@@ -14,7 +14,6 @@ use raysift::rays::generate::shadow_rays;
 use raysift::rays::Camera;
 use raysift::scene::procedural;
 use raysift::{tracers, Stats};
-use std::sync::Arc;
 use std::time::Instant;
 
 fn fmt(n: u64) -> String {
@@ -40,7 +39,7 @@ fn main() {
     extra.retain(|(k, _)| k != "naive");
 
     let t0 = Instant::now();
-    let scene = Arc::new(procedural::open(spec).expect("scene"));
+    let scene = procedural::open(spec).expect("scene");
     let load_ms = t0.elapsed().as_secs_f64() * 1e3;
     let b = scene.bounds();
     let cam = Camera::framing(&b, 45.0, w as f32 / h as f32);
@@ -62,7 +61,7 @@ fn main() {
             }
         }
         let mut t = tracers::create("dacrt", &o).expect("options");
-        let p = t.prepare_timed(scene.clone()).unwrap();
+        let p = t.prepare_timed(&scene).unwrap();
         (t, p)
     };
     let mut cols: Vec<(&str, Stats, f64)> = Vec::new();
@@ -73,7 +72,7 @@ fn main() {
         p.prepare_ms,
         t.bytes()
     );
-    let (_, s) = t.intersect_timed(&rays);
+    let (_, s) = t.intersect_timed(&scene, &rays).unwrap();
     cols.push(("Basic (ray)", s.clone(), p.prepare_ms + s.trace_ms));
     // Conic packets and Conic + 1 light (camera pass plus shadow pass, occlusion), as in the
     // paper, then with raysift's defaults.
@@ -117,21 +116,21 @@ fn main() {
         ),
     ] {
         let (t, p) = make(&opts);
-        let (hits, s) = t.intersect_timed(&rays);
+        let (hits, s) = t.intersect_timed(&scene, &rays).unwrap();
         cols.push((packets, s.clone(), p.prepare_ms + s.trace_ms));
         shadow = shadow_rays(&scene, &rays, &hits, light).0;
-        let (_, s2) = t.occluded_timed(&shadow);
+        let (_, s2) = t.occluded_timed(&scene, &shadow).unwrap();
         let sum = s.clone() + s2.clone();
         cols.push((light_pass, sum, p.prepare_ms + s.trace_ms + s2.trace_ms));
         cols.push((shadow_pass, s2.clone(), s2.trace_ms));
     }
     // The random-ray mode on camera rays, for reference.
     let (t, p) = make(&[("mode", "random")]);
-    let (_, s) = t.intersect_timed(&rays);
+    let (_, s) = t.intersect_timed(&scene, &rays).unwrap();
     cols.push(("Random mode", s.clone(), p.prepare_ms + s.trace_ms));
     // Incoherent rays: as many uniformly random rays in the scene box, random mode (auto).
     let random = raysift::rays::generate::random_in_box(&b, rays.len(), 1);
-    let (_, s) = t.intersect_timed(&random);
+    let (_, s) = t.intersect_timed(&scene, &random).unwrap();
     cols.push(("Random rays", s.clone(), p.prepare_ms + s.trace_ms));
 
     println!(
@@ -144,12 +143,12 @@ fn main() {
             name,
             ms,
             1e3 / ms,
-            fmt(s.ray_box),
-            fmt(s.cone_box),
-            fmt(s.tri_box),
-            fmt(s.ray_tri),
-            fmt(s.nodes),
-            fmt(s.leaves)
+            fmt(s.work.get("ray_box")),
+            fmt(s.work.get("cone_box")),
+            fmt(s.work.get("tri_box")),
+            fmt(s.work.get("ray_tri")),
+            fmt(s.work.get("nodes")),
+            fmt(s.work.get("leaves"))
         );
     }
     println!("shadow rays: {}", shadow.len());
@@ -161,8 +160,8 @@ fn main() {
         }
         let n_tris = scene.len();
         let mut n = tracers::create("naive", &[]).unwrap();
-        n.prepare(scene.clone()).unwrap();
-        let (_, s) = n.intersect_timed(&sub);
+        n.prepare(&scene).unwrap();
+        let (_, s) = n.intersect_timed(&scene, &sub).unwrap();
         println!(
             "naive: {:.1} ms for {} rays x {} triangles, about {:.0} ms for all {} camera rays (x64)",
             s.trace_ms,

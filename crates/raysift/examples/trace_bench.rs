@@ -14,8 +14,7 @@
 //! CPU-second is the per-thread rate.
 
 use raysift::rays::{generate::random_in_box, Camera};
-use raysift::{scene::procedural, tracers, RayBatch, Stats, Tracer};
-use std::sync::Arc;
+use raysift::{scene::procedural, tracers, RayBatch, Scene, Stats, Tracer};
 use std::time::Instant;
 
 fn main() {
@@ -49,7 +48,7 @@ fn run() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         .build()?;
     pool.install(|| -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let t0 = Instant::now();
-        let scene = Arc::new(procedural::open(spec)?);
+        let mut scene = procedural::open(spec)?;
         let load_ms = t0.elapsed().as_secs_f64() * 1e3;
         let mut tracer = tracers::create(name, &tracers::parse_opts(&opts)?)?;
         let n = scene.len().max(1) as f64;
@@ -64,27 +63,35 @@ fn run() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let mut prep = Stats::default();
         for _ in 0..repeat {
             let c0 = cpu_ms();
-            prep = tracer.prepare_timed(scene.clone())?;
+            scene.touch(); // a new frame: every repeat builds from scratch
+            prep = tracer.prepare_timed(&scene)?;
             if prep.prepare_ms < build_ms {
                 (build_ms, build_cpu) = (prep.prepare_ms, cpu_ms() - c0);
             }
         }
         println!(
             "build      {build_ms:9.1} ms (cpu {build_cpu:7.0} ms)  {} nodes, {} leaves, {:.1} bytes/triangle",
-            prep.nodes,
-            prep.leaves,
+            prep.built.get("nodes"),
+            prep.built.get("leaves"),
             tracer.bytes() as f64 / n
         );
         let cam = Camera::framing(&scene.bounds(), 45.0, 1.0).rays(width, width);
-        bench("camera", &*tracer, &cam, repeat, false);
+        bench("camera", &scene, &*tracer, &cam, repeat, false)?;
         let rnd = random_in_box(&scene.bounds(), random, 1);
-        bench("random", &*tracer, &rnd, repeat, false);
-        bench("random-occ", &*tracer, &rnd, repeat, true);
+        bench("random", &scene, &*tracer, &rnd, repeat, false)?;
+        bench("random-occ", &scene, &*tracer, &rnd, repeat, true)?;
         Ok(())
     })
 }
 
-fn bench(label: &str, tracer: &dyn Tracer, rays: &RayBatch, repeat: usize, occlusion: bool) {
+fn bench(
+    label: &str,
+    scene: &Scene,
+    tracer: &dyn Tracer,
+    rays: &RayBatch,
+    repeat: usize,
+    occlusion: bool,
+) -> raysift::Result<()> {
     let mut best = f64::INFINITY;
     let mut best_cpu = f64::INFINITY;
     let mut stats = Stats::default();
@@ -92,10 +99,10 @@ fn bench(label: &str, tracer: &dyn Tracer, rays: &RayBatch, repeat: usize, occlu
     for _ in 0..repeat {
         let c0 = cpu_ms();
         let (ms, s, h) = if occlusion {
-            let (o, s) = tracer.occluded_timed(rays);
+            let (o, s) = tracer.occluded_timed(scene, rays)?;
             (s.trace_ms, s, o.iter().filter(|&&b| b).count())
         } else {
-            let (hb, s) = tracer.intersect_timed(rays);
+            let (hb, s) = tracer.intersect_timed(scene, rays)?;
             (s.trace_ms, s, hb.hit_count())
         };
         let cpu = cpu_ms() - c0;
@@ -111,11 +118,12 @@ fn bench(label: &str, tracer: &dyn Tracer, rays: &RayBatch, repeat: usize, occlu
         rays.len() as f64 / best_cpu / 1e3,
         rays.len(),
         100.0 * hits as f64 / r,
-        stats.ray_box as f64 / r,
-        stats.ray_tri as f64 / r,
-        stats.nodes as f64 / r,
-        stats.leaves as f64 / r
+        stats.work.get("ray_box") as f64 / r,
+        stats.work.get("ray_tri") as f64 / r,
+        stats.work.get("nodes") as f64 / r,
+        stats.work.get("leaves") as f64 / r
     );
+    Ok(())
 }
 
 /// CPU time of the whole process (all threads) in ms: the sum of every thread's run time in

@@ -7,22 +7,30 @@
 //!
 //! ```
 //! use raysift::{rays::Camera, scene::procedural, tracers, Tracer};
-//! use std::sync::Arc;
 //!
-//! let scene = Arc::new(procedural::icosphere(1000));
-//! let mut tracer = tracers::create("naive", &[]).unwrap();
-//! tracer.prepare(scene.clone()).unwrap();
+//! let mut scene = procedural::icosphere(1000);
+//! let mut tracer = tracers::create("dacrt", &[]).unwrap();
+//! tracer.prepare(&scene).unwrap();
 //! let camera = Camera::framing(&scene.bounds(), 45.0, 1.0);
 //! let rays = camera.rays(16, 16);
-//! let (hits, stats) = tracer.intersect_timed(&rays);
+//! let (hits, stats) = tracer.intersect_timed(&scene, &rays).unwrap();
 //! assert!(hits.hit_count() > 80);
 //! assert_eq!(stats.rays, 256);
+//! println!("ray/triangle tests: {}", stats.work.get("ray_tri"));
+//!
+//! // A frame later the mesh has moved: the tracer updates (here DACRT re-reads its lists).
+//! scene.set_transform(0, glam::Affine3A::from_rotation_y(0.3)).unwrap();
+//! assert!(tracer.intersect_timed(&scene, &rays).is_err(), "stale: prepare first");
+//! tracer.prepare(&scene).unwrap();
+//! let (moved, _) = tracer.intersect_timed(&scene, &rays).unwrap();
+//! assert_eq!(moved.len(), 256);
 //! ```
 //!
 //! Layout: see ARCHITECTURE.md at the repository root.
 
 #![warn(missing_docs)]
 
+pub mod accel;
 pub mod error;
 pub mod geom;
 mod mem;
@@ -30,6 +38,7 @@ pub mod output;
 pub mod rays;
 pub mod render;
 pub mod scene;
+pub mod testkit;
 pub mod tracer;
 pub mod tracers;
 

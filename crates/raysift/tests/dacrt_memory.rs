@@ -10,7 +10,6 @@ use raysift::scene::{procedural, Scene};
 use raysift::{tracers, HitBatch, RayBatch};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-use std::sync::Arc;
 
 /// Counts bytes requested (total, and currently live) and forwards to the system allocator.
 struct Counting;
@@ -64,7 +63,7 @@ struct Case {
     held: usize,
 }
 
-fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &str) -> Case {
+fn run(scene: &Scene, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &str) -> Case {
     let opts = vec![
         ("mode".to_string(), mode.to_string()),
         ("tasks".to_string(), tasks.to_string()),
@@ -75,23 +74,24 @@ fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg
     let mut hits = HitBatch::new(rays.len());
     let mut occ = vec![false; rays.len()];
     // Warm up rayon's pool and thread-locals.
-    d.prepare(scene.clone()).unwrap();
-    d.intersect(rays, &mut hits);
+    d.prepare(scene).unwrap();
+    d.intersect(scene, rays, &mut hits, None).unwrap();
+    d.occluded(scene, rays, &mut occ, None).unwrap();
     let mut d = tracers::create("dacrt", &opts).unwrap();
     let (prepare, _) = measure(|| {
-        d.prepare(scene.clone()).unwrap();
+        d.prepare(scene).unwrap();
     });
     let intersect = measure(|| {
-        d.intersect(rays, &mut hits);
+        d.intersect(scene, rays, &mut hits, None).unwrap();
     });
     let (again, _) = measure(|| {
-        d.occluded(rays, &mut occ);
+        d.occluded(scene, rays, &mut occ, None).unwrap();
     });
     let held = d.bytes();
     let mut d = tracers::create("dacrt", &opts).unwrap();
-    d.prepare(scene.clone()).unwrap();
+    d.prepare(scene).unwrap();
     let occluded = measure(|| {
-        d.occluded(rays, &mut occ);
+        d.occluded(scene, rays, &mut occ, None).unwrap();
     });
     Case {
         prepare,
@@ -106,8 +106,8 @@ fn run(scene: &Arc<Scene>, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg
 fn dacrt_memory_is_a_deterministic_linear_function() {
     // Equal triangle counts, very different shapes: 20·4^5 = 20480.
     let t = 20_480;
-    let soup = Arc::new(procedural::soup(t, 3));
-    let sphere = Arc::new(procedural::icosphere(t));
+    let soup = procedural::soup(t, 3);
+    let sphere = procedural::icosphere(t);
     assert_eq!((soup.len(), sphere.len()), (t, t));
     let (w, h) = (64u32, 48u32);
     let r = (w * h) as usize;

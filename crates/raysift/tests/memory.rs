@@ -1,9 +1,9 @@
 //! Bytes per triangle and per ray, as documented in ARCHITECTURE.md and each tracer's module doc.
 
 use raysift::scene::{procedural, Scene};
-use raysift::tracers::bvh::{Bvh, Config};
+use raysift::tracers::bvh::{BvhTracer, Config};
+use raysift::Tracer;
 use raysift::{tracers, RayBatch};
-use std::sync::Arc;
 
 #[test]
 fn scene_soup_is_36_bytes_per_triangle_plus_its_source() {
@@ -41,13 +41,14 @@ fn rays_and_hits_are_32_and_16_bytes_per_ray() {
 #[test]
 fn naive_holds_nothing() {
     let mut t = tracers::create("naive", &[]).unwrap();
-    t.prepare(Arc::new(procedural::icosphere(1000))).unwrap();
+    t.prepare(&procedural::icosphere(1000)).unwrap();
     assert_eq!(t.bytes(), 0);
 }
 
 fn bvh_bytes(s: &Scene) -> (usize, usize) {
-    let b = Bvh::build(s, &Config::default()).unwrap();
-    (b.bytes(), b.node_count())
+    let mut t = BvhTracer::new(Config::default()).unwrap();
+    t.prepare(s).unwrap();
+    (t.bvh().bytes(), t.bvh().node_count())
 }
 
 #[test]
@@ -74,7 +75,7 @@ fn bvh_is_nodes_plus_40_bytes_per_triangle() {
         // A binary tree over n triangles has fewer than 2n nodes: at most 104 B per triangle.
         assert!(nodes < 2 * n.max(1));
         let mut t = tracers::create("bvh", &[]).unwrap();
-        let st = t.prepare(Arc::new(s.clone())).unwrap();
+        let st = t.prepare(&s).unwrap();
         assert_eq!(t.bytes(), bytes, "the tracer reports its structure's bytes");
         assert!(st.peak_bytes as usize >= bytes);
         eprintln!(

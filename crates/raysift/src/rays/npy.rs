@@ -333,8 +333,8 @@ mod tests {
         let scene = crate::scene::procedural::open("sphere:500").unwrap();
         let mut hits = HitBatch::new(rays.len());
         let mut tr = crate::tracers::create("naive", &[]).unwrap();
-        tr.prepare(std::sync::Arc::new(scene.clone())).unwrap();
-        tr.intersect(&rays, &mut hits);
+        tr.prepare(&scene).unwrap();
+        tr.intersect(&scene, &rays, &mut hits, None).unwrap();
         let light = Vec3::new(3.0, 5.0, 2.0);
         let (sr, _) = shadow_rays(&scene, &rays, &hits, light);
         assert!(sr.len() > 10);

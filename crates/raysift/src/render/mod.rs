@@ -95,9 +95,9 @@ pub fn raycast(
     height: u32,
     shade: Shade,
     light: Option<Vec3>,
-) -> (Image, RenderStats) {
+) -> Result<(Image, RenderStats)> {
     let rays = camera.rays(width, height);
-    let (hits, primary) = tracer.intersect_timed(&rays);
+    let (hits, primary) = tracer.intersect_timed(scene, &rays)?;
     let mut stats = RenderStats {
         hits: hits.hit_count() as u64,
         primary,
@@ -136,7 +136,7 @@ pub fn raycast(
         Shade::Diffuse => {
             let light = light.unwrap_or_else(|| default_light(scene, camera));
             let (shadow_rays, from) = generate::shadow_rays(scene, &rays, &hits, light);
-            let (blocked, s) = tracer.occluded_timed(&shadow_rays);
+            let (blocked, s) = tracer.occluded_timed(scene, &shadow_rays)?;
             stats.shadow = Some(s);
             let mut lit = vec![false; n];
             for (k, &i) in from.iter().enumerate() {
@@ -152,7 +152,7 @@ pub fn raycast(
                 .map(|x| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8)
         })
         .collect();
-    (Image { width, height, rgb }, stats)
+    Ok((Image { width, height, rgb }, stats))
 }
 
 fn diffuse(

@@ -7,6 +7,7 @@
 //! [`Tracer`] contract, so it runs with every tracer.
 
 use super::Image;
+use crate::error::Result;
 use crate::rays::{generate, Camera, HitBatch, Ray, RayBatch};
 use crate::scene::Scene;
 use crate::tracer::{Stats, Tracer};
@@ -70,7 +71,7 @@ pub fn path_trace(
     width: u32,
     height: u32,
     cfg: &PathConfig,
-) -> (Image, Vec<BounceStats>) {
+) -> Result<(Image, Vec<BounceStats>)> {
     let n = width as usize * height as usize;
     let mut sum = vec![Vec3::ZERO; n];
     let mut per_depth: Vec<BounceStats> = (0..=cfg.bounces)
@@ -120,7 +121,7 @@ pub fn path_trace(
                 break;
             }
             let t0 = std::time::Instant::now();
-            let mut st = tracer.intersect(&rays, &mut hits);
+            let mut st = tracer.intersect(scene, &rays, &mut hits, None)?;
             st.trace_ms = t0.elapsed().as_secs_f64() * 1e3;
             let b = &mut per_depth[depth as usize];
             b.rays += rays.len() as u64;
@@ -172,5 +173,5 @@ pub fn path_trace(
                 .map(|x| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8)
         })
         .collect();
-    (Image { width, height, rgb }, per_depth)
+    Ok((Image { width, height, rgb }, per_depth))
 }

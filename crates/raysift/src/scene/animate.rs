@@ -48,6 +48,8 @@ pub struct Animation {
     /// Spin: per-part centre, axis, rate, and each mesh's part.
     parts: Vec<(Vec3, Vec3, f32)>,
     mesh_part: Vec<usize>,
+    /// Explode: the positions buffer of the frame before last, reused for the next frame.
+    spare: Vec<Vec3>,
 }
 
 impl Animation {
@@ -100,6 +102,7 @@ impl Animation {
                     axis,
                     parts: Vec::new(),
                     mesh_part: Vec::new(),
+                    spare: Vec::new(),
                 })
             }
             Motion::SpinParts => {
@@ -136,24 +139,29 @@ impl Animation {
                     axis: Vec::new(),
                     parts,
                     mesh_part,
+                    spare: Vec::new(),
                 })
             }
         }
     }
 
-    /// The scene at time `t` (t = 0: rest pose; t = 1: a well-developed motion).
-    pub fn at(&mut self, t: f32) -> &Scene {
+    /// The scene at time `t` (t = 0: rest pose; t = 1: a well-developed motion), changed in
+    /// place: `explode` deforms its one mesh ([`Scene::replace_positions`], into a buffer kept
+    /// between frames), `spin-parts` moves each mesh rigidly ([`Scene::set_transform`]); the
+    /// scene's [`changes_since`](Scene::changes_since) says which.
+    pub fn at(&mut self, t: f32) -> Result<&Scene> {
         match self.motion {
             Motion::Explode => {
-                let m = self.scene.mesh_mut(0);
+                let mut pos = std::mem::take(&mut self.spare);
+                pos.clear();
+                pos.reserve(3 * self.rest.len());
                 for (i, tri) in self.rest.iter().enumerate() {
                     let c = (tri[0] + tri[1] + tri[2]) / 3.0;
                     let q = Quat::from_axis_angle(self.axis[i], 3.0 * t);
                     let c2 = c + self.velocity[i] * t;
-                    for (k, &corner) in tri.iter().enumerate() {
-                        m.positions[3 * i + k] = c2 + q * (corner - c);
-                    }
+                    pos.extend(tri.iter().map(|&corner| c2 + q * (corner - c)));
                 }
+                self.spare = self.scene.replace_positions(0, pos)?;
             }
             Motion::SpinParts => {
                 let spins: Vec<Affine3A> = self
@@ -169,11 +177,15 @@ impl Animation {
                     })
                     .collect();
                 for (k, &part) in self.mesh_part.iter().enumerate() {
-                    self.scene.mesh_mut(k).transform = spins[part];
+                    self.scene.set_transform(k, spins[part])?;
                 }
             }
         }
-        self.scene.rebake();
+        Ok(&self.scene)
+    }
+
+    /// The scene as of the last [`Animation::at`] (the rest pose before any).
+    pub fn scene(&self) -> &Scene {
         &self.scene
     }
 }
@@ -218,11 +230,11 @@ mod tests {
     fn explode_moves_triangles_apart_and_keeps_ids() {
         let s = procedural::icosphere(320);
         let mut a = Animation::new(&s, Motion::Explode).unwrap();
-        let rest = a.at(0.0).clone();
+        let rest = a.at(0.0).unwrap().clone();
         for i in 0..s.len() {
             assert_eq!(rest.triangles().get(i), s.triangles().get(i));
         }
-        let later = a.at(1.0);
+        let later = a.at(1.0).unwrap();
         assert_eq!(later.len(), s.len());
         assert!(later.bounds().extent().length() > 1.5 * s.bounds().extent().length());
     }
@@ -231,7 +243,7 @@ mod tests {
     fn spin_parts_splits_a_single_mesh_by_octant() {
         let s = procedural::icosphere(1280);
         let mut a = Animation::new(&s, Motion::SpinParts).unwrap();
-        let f = a.at(0.25).clone();
+        let f = a.at(0.25).unwrap().clone();
         assert_eq!(f.len(), s.len());
         assert_eq!(a.parts.len(), 8);
         // Each triangle moved rigidly: edge lengths kept, positions changed.
@@ -245,7 +257,7 @@ mod tests {
     fn spin_parts_is_rigid() {
         let s = procedural::tile(&procedural::cornell(), 2).unwrap();
         let mut a = Animation::new(&s, Motion::SpinParts).unwrap();
-        let f = a.at(0.3).clone();
+        let f = a.at(0.3).unwrap().clone();
         assert_eq!(f.len(), s.len());
         // Rigid motion keeps every edge length.
         for i in 0..s.len() {

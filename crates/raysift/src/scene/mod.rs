@@ -90,8 +90,15 @@ impl TriangleSoup {
     }
 }
 
-/// A scene: meshes plus their baked world-space soup.
-#[derive(Clone, Debug)]
+/// A scene: meshes plus their baked world-space soup, with a version that every change bumps.
+///
+/// Changes go through [`Scene::set_transform`] (a rigid motion of one mesh) and
+/// [`Scene::replace_positions`] (a deformation keeping the triangles), each of which re-bakes only
+/// that mesh's range of the soup and records, per mesh, the version at which it last moved or
+/// deformed, so a tracer can ask [`Scene::changes_since`] what changed since its last prepare
+/// (and update instead of rebuilding). A scene value has an identity of its own ([`Stamp`]): a
+/// clone is a different scene, so a tracer prepared for one refuses the other.
+#[derive(Debug)]
 pub struct Scene {
     /// Display name (file name or generator spec).
     pub name: String,
@@ -100,7 +107,88 @@ pub struct Scene {
     first_prim: Vec<u32>,
     soup: TriangleSoup,
     bounds: Aabb,
+    /// World bounds and degenerate count of each mesh (the scene's are their union and sum).
+    mesh_bounds: Vec<Aabb>,
+    mesh_degenerate: Vec<usize>,
     degenerate: usize,
+    id: u64,
+    version: u64,
+    /// Version at which each mesh last moved rigidly / deformed (0: never since creation).
+    moved_at: Vec<u64>,
+    deformed_at: Vec<u64>,
+}
+
+static NEXT_SCENE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_scene_id() -> u64 {
+    NEXT_SCENE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+}
+
+impl Clone for Scene {
+    /// A copy with an identity of its own (tracers prepared for `self` must prepare again).
+    fn clone(&self) -> Self {
+        Self {
+            name: self.name.clone(),
+            meshes: self.meshes.clone(),
+            first_prim: self.first_prim.clone(),
+            soup: self.soup.clone(),
+            bounds: self.bounds,
+            mesh_bounds: self.mesh_bounds.clone(),
+            mesh_degenerate: self.mesh_degenerate.clone(),
+            degenerate: self.degenerate,
+            id: next_scene_id(),
+            version: 0,
+            moved_at: vec![0; self.meshes.len()],
+            deformed_at: vec![0; self.meshes.len()],
+        }
+    }
+}
+
+/// Which scene, at which version, a tracer was prepared for. `Stamp::default()` is "never
+/// prepared": it matches no scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stamp {
+    scene: u64,
+    version: u64,
+}
+
+impl Stamp {
+    /// Ok when `scene` is the scene this stamp was taken of, unchanged since; otherwise the error
+    /// a trace returns (the tracer `tracer` must be prepared again).
+    pub fn check(&self, scene: &Scene, tracer: &str) -> Result<()> {
+        if *self == scene.stamp() {
+            return Ok(());
+        }
+        Err(Error::Invalid(if self.scene == 0 {
+            format!("tracer {tracer}: not prepared; call prepare(scene) before tracing")
+        } else if self.scene != scene.id {
+            format!(
+                "tracer {tracer}: prepared for another scene than {:?}; call prepare(scene) first",
+                scene.name
+            )
+        } else {
+            format!(
+                "tracer {tracer}: scene {:?} changed since prepare (version {} -> {}); call prepare(scene) first",
+                scene.name, self.version, scene.version
+            )
+        }))
+    }
+}
+
+/// What changed in a scene since a [`Stamp`], as [`Scene::changes_since`] reports it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Change {
+    /// Nothing: the stamp is current.
+    None,
+    /// Another scene, or never prepared: everything is new.
+    All,
+    /// Some meshes changed; the triangle count and ids are unchanged.
+    Meshes {
+        /// Meshes whose transform changed (rigid motion), and nothing else.
+        moved: Vec<usize>,
+        /// Meshes whose positions changed (deformation, same triangles); may also have moved.
+        deformed: Vec<usize>,
+    },
 }
 
 impl Scene {
@@ -113,13 +201,7 @@ impl Scene {
         let mut total: u64 = 0;
         for (m, mesh) in meshes.iter().enumerate() {
             first_prim.push(total as u32);
-            if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
-                return Err(Error::parse(
-                    &name,
-                    format!("mesh {m} ({}), vertex {i}", mesh.name),
-                    format!("non-finite coordinate {:?}", mesh.positions[i]),
-                ));
-            }
+            check_positions(&name, m, mesh, &mesh.positions)?;
             let nv = mesh.positions.len() as u64;
             if let Some(f) = mesh
                 .indices
@@ -135,13 +217,7 @@ impl Scene {
                     ),
                 ));
             }
-            if !transform_is_finite(&mesh.transform) {
-                return Err(Error::parse(
-                    &name,
-                    format!("mesh {m} ({})", mesh.name),
-                    "non-finite transform",
-                ));
-            }
+            check_transform(&name, m, mesh, &mesh.transform)?;
             total += mesh.indices.len() as u64;
         }
         if total >= u32::MAX as u64 {
@@ -151,56 +227,171 @@ impl Scene {
             )));
         }
         first_prim.push(total as u32);
+        let nm = meshes.len();
+        let n = total as usize;
         let mut scene = Self {
             name,
             meshes,
             first_prim,
-            soup: TriangleSoup::default(),
+            soup: TriangleSoup {
+                v0: vec![Vec3::ZERO; n],
+                v1: vec![Vec3::ZERO; n],
+                v2: vec![Vec3::ZERO; n],
+            },
             bounds: Aabb::EMPTY,
+            mesh_bounds: vec![Aabb::EMPTY; nm],
+            mesh_degenerate: vec![0; nm],
             degenerate: 0,
+            id: next_scene_id(),
+            version: 0,
+            moved_at: vec![0; nm],
+            deformed_at: vec![0; nm],
         };
-        scene.rebake();
+        for m in 0..nm {
+            scene.bake_mesh(m);
+        }
+        scene.sum_meshes();
         Ok(scene)
     }
 
-    /// Recomputes the world soup, bounds and degenerate count from the meshes (call after
-    /// changing transforms or positions).
-    pub fn rebake(&mut self) {
-        let n = *self.first_prim.last().unwrap_or(&0) as usize;
-        let soup = &mut self.soup;
-        for v in [&mut soup.v0, &mut soup.v1, &mut soup.v2] {
-            v.clear();
-            v.reserve_exact(n);
-        }
-        let mut bounds = Aabb::EMPTY;
-        let mut degenerate = 0;
-        for mesh in &self.meshes {
-            let world: Vec<Vec3> = mesh
-                .positions
+    /// Bakes mesh `m` into its range of the soup (world positions; degenerate triangles
+    /// collapsed to their first corner) and records its bounds and degenerate count.
+    fn bake_mesh(&mut self, m: usize) {
+        use rayon::prelude::*;
+        let mesh = &self.meshes[m];
+        let range = self.first_prim[m] as usize..self.first_prim[m + 1] as usize;
+        let xf = mesh.transform;
+        let world: Vec<Vec3> = if mesh.positions.len() > 1 << 14 {
+            mesh.positions
+                .par_iter()
+                .map(|&p| xf.transform_point3(p))
+                .collect()
+        } else {
+            mesh.positions
                 .iter()
-                .map(|&p| mesh.transform.transform_point3(p))
-                .collect();
-            for t in &mesh.indices {
-                let (a, b, c) = (
-                    world[t[0] as usize],
-                    world[t[1] as usize],
-                    world[t[2] as usize],
-                );
-                bounds = bounds.grow(a).grow(b).grow(c);
-                if is_degenerate(a, b, c) {
-                    degenerate += 1;
-                    soup.v0.push(a);
-                    soup.v1.push(a);
-                    soup.v2.push(a);
-                } else {
-                    soup.v0.push(a);
-                    soup.v1.push(b);
-                    soup.v2.push(c);
+                .map(|&p| xf.transform_point3(p))
+                .collect()
+        };
+        const CH: usize = 1 << 14;
+        let soup = &mut self.soup;
+        let (bounds, degenerate) = soup.v0[range.clone()]
+            .par_chunks_mut(CH)
+            .zip(soup.v1[range.clone()].par_chunks_mut(CH))
+            .zip(soup.v2[range].par_chunks_mut(CH))
+            .zip(mesh.indices.par_chunks(CH))
+            .map(|(((v0, v1), v2), idx)| {
+                let (mut b, mut d) = (Aabb::EMPTY, 0usize);
+                for (k, t) in idx.iter().enumerate() {
+                    let (a, bb, c) = (
+                        world[t[0] as usize],
+                        world[t[1] as usize],
+                        world[t[2] as usize],
+                    );
+                    b = b.grow(a).grow(bb).grow(c);
+                    if is_degenerate(a, bb, c) {
+                        d += 1;
+                        (v0[k], v1[k], v2[k]) = (a, a, a);
+                    } else {
+                        (v0[k], v1[k], v2[k]) = (a, bb, c);
+                    }
                 }
-            }
+                (b, d)
+            })
+            .reduce(|| (Aabb::EMPTY, 0), |x, y| (x.0.union(y.0), x.1 + y.1));
+        self.mesh_bounds[m] = bounds;
+        self.mesh_degenerate[m] = degenerate;
+    }
+
+    fn sum_meshes(&mut self) {
+        self.bounds = self
+            .mesh_bounds
+            .iter()
+            .fold(Aabb::EMPTY, |a, b| a.union(*b));
+        self.degenerate = self.mesh_degenerate.iter().sum();
+    }
+
+    /// Sets mesh `m`'s local-to-world transform (a rigid or affine motion: triangles and local
+    /// positions unchanged), re-bakes that mesh's triangles and bumps the version.
+    pub fn set_transform(&mut self, m: usize, transform: Affine3A) -> Result<()> {
+        let mesh = self.mesh_checked(m)?;
+        check_transform(&self.name, m, mesh, &transform)?;
+        self.meshes[m].transform = transform;
+        self.version += 1;
+        self.moved_at[m] = self.version;
+        self.bake_mesh(m);
+        self.sum_meshes();
+        Ok(())
+    }
+
+    /// Replaces mesh `m`'s local positions (a deformation: same vertex count, same triangles),
+    /// re-bakes that mesh's triangles, bumps the version, and returns the old positions (so an
+    /// animation can reuse the buffer: nothing is copied).
+    pub fn replace_positions(&mut self, m: usize, positions: Vec<Vec3>) -> Result<Vec<Vec3>> {
+        let mesh = self.mesh_checked(m)?;
+        if positions.len() != mesh.positions.len() {
+            return Err(Error::Invalid(format!(
+                "{}: mesh {m} ({}): {} positions given, the mesh has {} vertices (a deformation keeps them)",
+                self.name,
+                mesh.name,
+                positions.len(),
+                mesh.positions.len()
+            )));
         }
-        self.bounds = bounds;
-        self.degenerate = degenerate;
+        check_positions(&self.name, m, mesh, &positions)?;
+        let old = std::mem::replace(&mut self.meshes[m].positions, positions);
+        self.version += 1;
+        self.deformed_at[m] = self.version;
+        self.bake_mesh(m);
+        self.sum_meshes();
+        Ok(old)
+    }
+
+    /// Records a new frame of the same geometry: every mesh counts as deformed, so tracers
+    /// rebuild or update as after a real change (benchmarks use it to measure a prepare).
+    pub fn touch(&mut self) {
+        self.version += 1;
+        self.deformed_at.iter_mut().for_each(|v| *v = self.version);
+    }
+
+    fn mesh_checked(&self, m: usize) -> Result<&Mesh> {
+        self.meshes.get(m).ok_or_else(|| {
+            Error::Invalid(format!(
+                "{}: mesh {m} out of range (the scene has {} meshes)",
+                self.name,
+                self.meshes.len()
+            ))
+        })
+    }
+
+    /// This scene as it is now (compare with [`Stamp::check`]).
+    pub fn stamp(&self) -> Stamp {
+        Stamp {
+            scene: self.id,
+            version: self.version,
+        }
+    }
+
+    /// The version: 0 when made, bumped by every change.
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// What changed since `stamp` was taken (of this scene or another).
+    pub fn changes_since(&self, stamp: Stamp) -> Change {
+        if stamp.scene != self.id {
+            return Change::All;
+        }
+        if stamp.version == self.version {
+            return Change::None;
+        }
+        let v = stamp.version;
+        let deformed: Vec<usize> = (0..self.meshes.len())
+            .filter(|&m| self.deformed_at[m] > v)
+            .collect();
+        let moved = (0..self.meshes.len())
+            .filter(|&m| self.moved_at[m] > v && self.deformed_at[m] <= v)
+            .collect();
+        Change::Meshes { moved, deformed }
     }
 
     /// The world-space triangles.
@@ -226,22 +417,18 @@ impl Scene {
         &self.meshes
     }
 
-    /// Mutable access to one mesh (positions or transform); call [`Scene::rebake`] afterwards.
-    /// Changing the number of triangles is not allowed (ids must stay stable): it panics at rebake
-    /// time through the debug assertion below, so use [`Scene::from_meshes`] for that.
-    pub fn mesh_mut(&mut self, m: usize) -> &mut Mesh {
-        &mut self.meshes[m]
-    }
-
-    /// Sets mesh `m`'s transform and rebakes.
-    pub fn set_transform(&mut self, m: usize, transform: Affine3A) {
-        self.meshes[m].transform = transform;
-        self.rebake();
-    }
-
     /// Primitive-id range of mesh `m`.
     pub fn mesh_prims(&self, m: usize) -> std::ops::Range<usize> {
         self.first_prim[m] as usize..self.first_prim[m + 1] as usize
+    }
+
+    /// The mesh (geometry id) holding primitive `prim`; `MISS` for `MISS` or an id out of range.
+    pub fn geometry_of(&self, prim: u32) -> u32 {
+        if prim as usize >= self.len() {
+            return crate::rays::MISS;
+        }
+        // Meshes are few; the last mesh whose first primitive is <= prim (empty meshes skipped).
+        (self.first_prim.partition_point(|&f| f <= prim) - 1) as u32
     }
 
     /// Total number of source vertices.
@@ -252,6 +439,11 @@ impl Scene {
     /// World-space bounds of all triangles (degenerate ones included).
     pub fn bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// World-space bounds of mesh `m`.
+    pub fn mesh_bounds(&self, m: usize) -> Aabb {
+        self.mesh_bounds[m]
     }
 
     /// Number of degenerate (never-hit) triangles.
@@ -277,6 +469,29 @@ impl Scene {
     pub fn normal(&self, prim: usize) -> Vec3 {
         let [a, b, c] = self.soup.get(prim);
         crate::geom::triangle::normal(a, b, c).normalize_or_zero()
+    }
+}
+
+fn check_positions(name: &str, m: usize, mesh: &Mesh, positions: &[Vec3]) -> Result<()> {
+    match positions.iter().position(|p| !p.is_finite()) {
+        Some(i) => Err(Error::parse(
+            name,
+            format!("mesh {m} ({}), vertex {i}", mesh.name),
+            format!("non-finite coordinate {:?}", positions[i]),
+        )),
+        None => Ok(()),
+    }
+}
+
+fn check_transform(name: &str, m: usize, mesh: &Mesh, t: &Affine3A) -> Result<()> {
+    if transform_is_finite(t) {
+        Ok(())
+    } else {
+        Err(Error::parse(
+            name,
+            format!("mesh {m} ({})", mesh.name),
+            "non-finite transform",
+        ))
     }
 }
 
@@ -323,9 +538,89 @@ mod tests {
     #[test]
     fn transforms_move_the_soup() {
         let mut s = Scene::from_meshes("t", vec![quad()]).unwrap();
-        s.set_transform(0, Affine3A::from_translation(Vec3::new(0.0, 0.0, 5.0)));
+        s.set_transform(0, Affine3A::from_translation(Vec3::new(0.0, 0.0, 5.0)))
+            .unwrap();
         assert_eq!(s.triangles().v0[0], Vec3::new(0.0, 0.0, 5.0));
         assert_eq!(s.bounds().min.z, 5.0);
+        let bad = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
+        let e = s.set_transform(0, bad).unwrap_err().to_string();
+        assert!(e.contains("non-finite transform"), "{e}");
+        assert!(s.set_transform(3, Affine3A::IDENTITY).is_err());
+    }
+
+    #[test]
+    fn partial_rebake_equals_a_fresh_bake() {
+        let mut s = Scene::from_meshes("t", vec![quad(), quad(), quad()]).unwrap();
+        let xf = Affine3A::from_rotation_z(0.3) * Affine3A::from_translation(Vec3::ONE);
+        s.set_transform(1, xf).unwrap();
+        let mut moved = quad();
+        moved.positions[2] = Vec3::new(3.0, 1.0, -2.0);
+        s.replace_positions(2, moved.positions.clone()).unwrap();
+        let mut m1 = quad();
+        m1.transform = xf;
+        let fresh = Scene::from_meshes("f", vec![quad(), m1, moved]).unwrap();
+        for i in 0..s.len() {
+            assert_eq!(
+                s.triangles().get(i),
+                fresh.triangles().get(i),
+                "triangle {i}"
+            );
+        }
+        assert_eq!(s.bounds(), fresh.bounds());
+        assert_eq!(s.degenerate_count(), fresh.degenerate_count());
+        let e = s.replace_positions(0, vec![Vec3::ZERO]).unwrap_err();
+        assert!(e.to_string().contains("1 positions given"), "{e}");
+    }
+
+    #[test]
+    fn changes_since_names_what_moved() {
+        let mut s = Scene::from_meshes("t", vec![quad(), quad(), quad()]).unwrap();
+        let fresh = Stamp::default();
+        assert_eq!(s.changes_since(fresh), Change::All);
+        let v0 = s.stamp();
+        assert_eq!(s.changes_since(v0), Change::None);
+        assert!(v0.check(&s, "x").is_ok());
+        s.set_transform(2, Affine3A::from_translation(Vec3::X))
+            .unwrap();
+        let v1 = s.stamp();
+        s.replace_positions(0, quad().positions).unwrap();
+        assert_eq!(
+            s.changes_since(v0),
+            Change::Meshes {
+                moved: vec![2],
+                deformed: vec![0]
+            }
+        );
+        assert_eq!(
+            s.changes_since(v1),
+            Change::Meshes {
+                moved: vec![],
+                deformed: vec![0]
+            }
+        );
+        let e = v0.check(&s, "bvh").unwrap_err().to_string();
+        assert!(e.contains("bvh") && e.contains("changed"), "{e}");
+        // A clone is another scene.
+        let c = s.clone();
+        assert_eq!(c.changes_since(s.stamp()), Change::All);
+        assert!(s.stamp().check(&c, "bvh").is_err());
+        assert!(Stamp::default()
+            .check(&s, "bvh")
+            .unwrap_err()
+            .to_string()
+            .contains("not prepared"));
+    }
+
+    #[test]
+    fn geometry_of_finds_the_mesh() {
+        let empty = Mesh::new("e", vec![], vec![]);
+        let s = Scene::from_meshes("t", vec![quad(), empty, quad()]).unwrap();
+        assert_eq!(s.geometry_of(0), 0);
+        assert_eq!(s.geometry_of(2), 0);
+        assert_eq!(s.geometry_of(3), 2);
+        assert_eq!(s.geometry_of(5), 2);
+        assert_eq!(s.geometry_of(6), crate::rays::MISS);
+        assert_eq!(s.geometry_of(crate::rays::MISS), crate::rays::MISS);
     }
 
     #[test]

@@ -130,15 +130,19 @@ use crate::geom::{
 };
 use crate::mem::reserve_exact_huge;
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
+use crate::scene::Stamp;
 use crate::scene::{Scene, TriangleSoup};
-use crate::tracer::{closer, par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
+use crate::tracer::{
+    closer, par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer,
+};
+use crate::tracers::{OptionDoc, Preset};
 use glam::{BVec4A, Mat4, Vec3, Vec4};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::ops::Range;
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 /// Which recursion to run.
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     /// Conic packets for pinhole and shadow batches, random-ray mode otherwise.
@@ -153,7 +157,7 @@ pub enum Mode {
 }
 
 /// Options (`key=value` on the command line).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct Config {
     /// Naive leaf when fewer active rays than this (paper: 20). Default 20.
@@ -259,7 +263,7 @@ impl Default for Config {
 /// The DACRT tracer: the scene plus its per-axis triangle bounds (rebuilt by every prepare, O(T)).
 pub struct Dacrt {
     cfg: Config,
-    scene: Option<Arc<Scene>>,
+    stamp: Stamp,
     /// `span[a][t] = [lo, hi]`: triangle `t`'s bounds on axis `a` (§3.5's min/max lists, each
     /// pair side by side: the split-plane test gathers both through the triangle index, and one
     /// cache line instead of two measured faster on the 871K dragon).
@@ -321,7 +325,7 @@ impl Dacrt {
     pub fn new(cfg: Config) -> Self {
         Self {
             cfg,
-            scene: None,
+            stamp: Stamp::default(),
             span: Default::default(),
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
         }
@@ -600,7 +604,9 @@ struct Task<'a, const ANY: bool> {
     tmin0: f32,
     touched: Vec<u64>,
     touched_list: Vec<u32>,
-    st: Stats,
+    st: Counts,
+    /// Bytes this task allocated (see the module doc's formula).
+    peak: u64,
 }
 
 impl<'a, const ANY: bool> Task<'a, ANY> {
@@ -1831,7 +1837,7 @@ impl Dacrt {
         u: &mut [f32],
         v: &mut [f32],
         occ: &mut [bool],
-    ) -> Stats {
+    ) -> Tally<Counts> {
         let ntri = scene.len();
         let len = range.len();
         let huge = self.cfg.huge_pages;
@@ -1904,9 +1910,9 @@ impl Dacrt {
             tmin0: 0.0,
             touched: reuse(sc.touched, 0, huge),
             touched_list: reuse(sc.touched_list, 0, huge),
-            st: Stats::default(),
+            st: Counts::default(),
+            peak: 0,
         };
-        task.st.rays = len as u64;
         let root = scene.bounds();
         let max_angle = match packets {
             Packets::Runs { .. } => self.cfg.max_shadow_cone_deg,
@@ -1989,7 +1995,7 @@ impl Dacrt {
             reserve_exact_huge(&mut task.recs, len, huge);
             task.recs.resize(len, RayRec::default());
         }
-        task.st.peak_bytes = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
+        task.peak = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
             + if task.tile_leaves {
                 (8 * ntri + (12 + 1024) * ncones) as u64
             } else {
@@ -2077,16 +2083,204 @@ impl Dacrt {
                 touched_list: task.touched_list,
             };
         }
-        task.st
+        Tally {
+            counts: task.st,
+            peak_bytes: task.peak,
+        }
     }
 }
+
+crate::counters! {
+    /// What a `dacrt` trace counts.
+    pub struct Counts {
+        /// Ray/box tests (a ray filtered against a cell).
+        ray_box,
+        /// Ray/triangle tests.
+        ray_tri,
+        /// Triangle/box tests (a triangle filtered against a cell: split plane, and edge axes below `sat_threshold`).
+        tri_box,
+        /// Cone/box tests (a conic packet against a cell).
+        cone_box,
+        /// Cells divided (interior steps of the recursion).
+        nodes,
+        /// Naive leaves (and tile leaves).
+        leaves,
+    }
+}
+
+crate::counters! {
+    /// What a `dacrt` prepare makes.
+    pub struct Built {
+        /// Triangles whose per-axis min/max lists were written.
+        triangles,
+    }
+}
+
+/// One line per option, for `raysift tracers --verbose` (details on [`Config`]'s fields).
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc { key: "r_limit", doc: "naive leaf when fewer active rays than this (paper: 20)" },
+    OptionDoc { key: "p_limit", doc: "naive leaf when fewer triangles than this (paper: 16)" },
+    OptionDoc { key: "leaf_pairs", doc: "divide a small cell on while its naive leaf would test more pairs than this (ours; usize::MAX: the paper's rule)" },
+    OptionDoc { key: "c_limit", doc: "flush cones to rays when fewer active cones than this" },
+    OptionDoc { key: "sat_threshold", doc: "edge-axis triangle/box test on streams smaller than this (paper: 100; 0: never)" },
+    OptionDoc { key: "split_sample_threshold", doc: "sampled split position for streams of at least this many triangles (paper: 10000)" },
+    OptionDoc { key: "split_sample_stride", doc: "sample every n-th triangle for the split position (paper: 50)" },
+    OptionDoc { key: "mode", doc: "auto, packet, ray or random" },
+    OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
+    OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
+    OptionDoc { key: "max_cone_deg", doc: "camera packets with a wider cone half-angle (degrees) are traced as rays" },
+    OptionDoc { key: "max_shadow_cone_deg", doc: "the same for shadow packets from a light (0: no shadow packets)" },
+    OptionDoc { key: "flush_filter", doc: "flushed cones keep only the rays entering the cell" },
+    OptionDoc { key: "screen_cull", doc: "camera packets: cull cells by their projection onto the image instead of the tiles' cones (ours)" },
+    OptionDoc { key: "pixel_cull", doc: "camera batches: drop triangles that cover no pixel centre (ours)" },
+    OptionDoc { key: "pixel_leaf", doc: "camera batches: tile leaves testing each triangle against the pixels of its rectangle (ours)" },
+    OptionDoc { key: "pixel_leaf_c_limit", doc: "tile leaf when fewer active tiles than this" },
+    OptionDoc { key: "huge_pages", doc: "ask Linux for transparent huge pages for the per-call buffers" },
+];
+
+/// The paper's small limits and ours pushed to their extremes (deep recursions everywhere),
+/// over three tasks.
+macro_rules! tiny {
+    ($mode:literal) => {
+        &[
+            ("mode", $mode),
+            ("tasks", "3"),
+            ("r_limit", "2"),
+            ("p_limit", "2"),
+            ("c_limit", "1"),
+            ("sat_threshold", "1000"),
+            ("split_sample_threshold", "64"),
+            ("split_sample_stride", "3"),
+            ("max_depth", "40"),
+            ("leaf_pairs", "0"),
+            ("max_cone_deg", "60"),
+            ("max_shadow_cone_deg", "60"),
+            ("pixel_leaf_c_limit", "1"),
+        ]
+    };
+}
+
+/// Configurations the conformance suite checks besides the defaults: every mode with one task
+/// and with tiny limits over three tasks, the paper's cones and leaf rule, flushes, shadow
+/// packets, and no huge pages.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "packet",
+        opts: &[("mode", "packet"), ("tasks", "1")],
+    },
+    Preset {
+        name: "ray",
+        opts: &[("mode", "ray"), ("tasks", "1")],
+    },
+    Preset {
+        name: "random",
+        opts: &[("mode", "random"), ("tasks", "1")],
+    },
+    Preset {
+        name: "auto",
+        opts: &[("mode", "auto"), ("tasks", "1")],
+    },
+    Preset {
+        name: "packet tiny",
+        opts: tiny!("packet"),
+    },
+    Preset {
+        name: "ray tiny",
+        opts: tiny!("ray"),
+    },
+    Preset {
+        name: "random tiny",
+        opts: tiny!("random"),
+    },
+    Preset {
+        name: "auto tiny",
+        opts: tiny!("auto"),
+    },
+    Preset {
+        name: "wide cones, no flush filter, no pixel culling or tile leaves",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("max_cone_deg", "80"),
+            ("max_shadow_cone_deg", "80"),
+            ("flush_filter", "false"),
+            ("pixel_cull", "false"),
+            ("pixel_leaf", "false"),
+        ],
+    },
+    Preset {
+        name: "paper's leaf rule, ray",
+        opts: &[
+            ("mode", "ray"),
+            ("tasks", "2"),
+            ("leaf_pairs", "18446744073709551615"),
+        ],
+    },
+    Preset {
+        name: "paper's leaf rule, random",
+        opts: &[
+            ("mode", "random"),
+            ("tasks", "2"),
+            ("leaf_pairs", "18446744073709551615"),
+        ],
+    },
+    Preset {
+        name: "cones never flushed, shadow packets",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "1"),
+            ("c_limit", "100000"),
+            ("max_shadow_cone_deg", "30"),
+        ],
+    },
+    Preset {
+        name: "paper's cones with tile leaves",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("screen_cull", "false"),
+            ("pixel_leaf", "true"),
+            ("c_limit", "4"),
+            ("pixel_leaf_c_limit", "4"),
+            ("p_limit", "4"),
+        ],
+    },
+    Preset {
+        name: "paper's cones flushed to rays",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("screen_cull", "false"),
+            ("pixel_leaf", "false"),
+            ("c_limit", "4"),
+            ("pixel_leaf_c_limit", "4"),
+            ("p_limit", "4"),
+        ],
+    },
+    Preset {
+        name: "flushes, no huge pages",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "1"),
+            ("pixel_leaf", "false"),
+            ("huge_pages", "false"),
+        ],
+    },
+];
+
+/// Counter docs, for the registry: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (
+    <Built as crate::tracer::CounterSet>::DOCS,
+    <Counts as crate::tracer::CounterSet>::DOCS,
+);
 
 impl Tracer for Dacrt {
     fn name(&self) -> &'static str {
         "dacrt"
     }
 
-    fn prepare(&mut self, scene: Arc<Scene>) -> Result<Stats> {
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        self.stamp = Stamp::default();
         let tris = scene.triangles();
         let n = tris.len();
         let huge = self.cfg.huge_pages;
@@ -2105,68 +2299,82 @@ impl Tracer for Dacrt {
                 self.span[k].push([mn[k], mx[k]]);
             }
         }
-        self.scene = Some(scene);
-        Ok(Stats {
-            peak_bytes: self.bytes() as u64,
-            ..Stats::default()
-        })
+        self.stamp = scene.stamp();
+        Ok(Stats::prepared(
+            &Built {
+                triangles: n as u64,
+            },
+            self.bytes(),
+        ))
     }
 
-    fn intersect(&self, rays: &RayBatch, hits: &mut HitBatch) -> Stats {
-        let scene = match self.scene.as_deref() {
-            Some(s) if !s.is_empty() && !rays.is_empty() => s,
-            _ => {
-                hits.reset(rays.len());
-                return Stats {
-                    rays: rays.len() as u64,
-                    ..Stats::default()
-                };
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        if scene.is_empty() || rays.is_empty() {
+            hits.reset(rays.len());
+            if let Some(c) = cost {
+                c.reset(rays.len());
             }
-        };
+            return Ok(Stats::traced(rays.len(), &Counts::default()));
+        }
         let (plan, packets) = self.plan(rays);
-        par_ray_chunks(rays, hits, plan.chunk, |range, out| {
-            self.run_task::<false>(
-                scene,
-                rays,
-                range,
-                &plan,
-                packets,
-                out.t,
-                out.prim,
-                out.u,
-                out.v,
-                &mut [],
-            )
-        })
+        let tally: Tally<Counts> =
+            par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, _cost| {
+                self.run_task::<false>(
+                    scene,
+                    rays,
+                    range,
+                    &plan,
+                    packets,
+                    out.t,
+                    out.prim,
+                    out.u,
+                    out.v,
+                    &mut [],
+                )
+            });
+        Ok(tally.into_stats(rays.len()))
     }
 
-    fn occluded(&self, rays: &RayBatch, occluded: &mut Vec<bool>) -> Stats {
-        let scene = match self.scene.as_deref() {
-            Some(s) if !s.is_empty() && !rays.is_empty() => s,
-            _ => {
-                occluded.clear();
-                occluded.resize(rays.len(), false);
-                return Stats {
-                    rays: rays.len() as u64,
-                    ..Stats::default()
-                };
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        if scene.is_empty() || rays.is_empty() {
+            occluded.clear();
+            occluded.resize(rays.len(), false);
+            if let Some(c) = cost {
+                c.reset(rays.len());
             }
-        };
+            return Ok(Stats::traced(rays.len(), &Counts::default()));
+        }
         let (plan, packets) = self.plan(rays);
-        par_occlusion_chunks(rays, occluded, plan.chunk, |range, out| {
-            self.run_task::<true>(
-                scene,
-                rays,
-                range,
-                &plan,
-                packets,
-                &mut [],
-                &mut [],
-                &mut [],
-                &mut [],
-                out,
-            )
-        })
+        let tally: Tally<Counts> =
+            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, _cost| {
+                self.run_task::<true>(
+                    scene,
+                    rays,
+                    range,
+                    &plan,
+                    packets,
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    out,
+                )
+            });
+        Ok(tally.into_stats(rays.len()))
     }
 
     fn bytes(&self) -> usize {

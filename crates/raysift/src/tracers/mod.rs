@@ -1,5 +1,7 @@
-//! The tracers, one module (file or folder) per technique, and the registry that builds them by
-//! name for the CLI, the renderers and the tests.
+//! The tracers, one module (file or folder) per technique, and the registry ([`REGISTRY`]) that
+//! names them: the CLI (`raysift tracers`, `--tracer`), the renderers, the benchmark harness and
+//! the conformance suite all read this one table, so a technique joins everything by adding its
+//! entry here.
 //!
 //! | name | technique | module |
 //! |---|---|---|
@@ -12,29 +14,173 @@ pub mod dacrt;
 pub mod naive;
 
 use crate::error::{Error, Result};
-use crate::tracer::Tracer;
+use crate::tracer::{CounterDocs, Tracer};
 use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+/// One option of a tracer's `Config`: its key and a one-line meaning (the default comes from
+/// the `Config`'s `Default`, see [`Entry::options`]).
+#[derive(Clone, Copy, Debug)]
+pub struct OptionDoc {
+    /// The `--opt` key.
+    pub key: &'static str,
+    /// What it does (the `Config` field's doc has the details and measurements' links).
+    pub doc: &'static str,
+}
+
+/// A named set of options the conformance suite checks against `naive` (every case, closest
+/// hit and occlusion), so a tracer's modes are proven without test code of their own.
+#[derive(Clone, Copy, Debug)]
+pub struct Preset {
+    /// Short name, printed on failure.
+    pub name: &'static str,
+    /// `key=value` options.
+    pub opts: &'static [(&'static str, &'static str)],
+}
+
+/// Builds a tracer from `key=value` options.
+type Constructor = fn(&[(String, String)]) -> Result<Box<dyn Tracer>>;
+
+/// A registered tracer.
+pub struct Entry {
+    /// The registry name (`--tracer`).
+    pub name: &'static str,
+    /// The paper it implements (or "ground truth" / "baseline").
+    pub paper: &'static str,
+    /// One line: what it does.
+    pub summary: &'static str,
+    /// Builds it with `key=value` options (unknown keys are an error).
+    create: Constructor,
+    /// The defaults of its options as JSON (`Config::default()` serialised; empty for none).
+    defaults: fn() -> serde_json::Map<String, serde_json::Value>,
+    /// The meaning of each option, one per key of `defaults`.
+    option_docs: &'static [OptionDoc],
+    /// Configurations the conformance suite checks (the defaults are always checked too).
+    pub presets: &'static [Preset],
+    /// Counters a prepare reports in `Stats::built`: `(name, meaning)`.
+    pub built_counters: CounterDocs,
+    /// Counters a trace reports in `Stats::work`: `(name, meaning)`.
+    pub work_counters: CounterDocs,
+}
+
+/// An option with its default and meaning, as `raysift tracers --verbose` lists them.
+#[derive(Clone, Debug, Serialize)]
+pub struct OptionInfo {
+    /// The key.
+    pub key: &'static str,
+    /// The default, as JSON.
+    pub default: serde_json::Value,
+    /// What it does.
+    pub doc: &'static str,
+}
+
+impl Entry {
+    /// Builds this tracer with `key=value` options.
+    pub fn create(&self, opts: &[(String, String)]) -> Result<Box<dyn Tracer>> {
+        (self.create)(opts)
+    }
+
+    /// Every option with its default and meaning, in the `Config`'s field order.
+    pub fn options(&self) -> Vec<OptionInfo> {
+        let defaults = (self.defaults)();
+        defaults
+            .into_iter()
+            .map(|(k, default)| {
+                let doc = self.option_docs.iter().find(|d| d.key == k);
+                OptionInfo {
+                    key: doc.map_or("?", |d| d.key),
+                    default,
+                    doc: doc.map_or("(undocumented)", |d| d.doc),
+                }
+            })
+            .collect()
+    }
+
+    /// Option keys that have a default but no doc, or a doc but no such option (the registry
+    /// test demands none).
+    pub fn undocumented_options(&self) -> Vec<String> {
+        let defaults = (self.defaults)();
+        let mut bad: Vec<String> = defaults
+            .keys()
+            .filter(|k| !self.option_docs.iter().any(|d| d.key == k.as_str()))
+            .map(|k| format!("{}: option {k} has no doc", self.name))
+            .collect();
+        bad.extend(
+            self.option_docs
+                .iter()
+                .filter(|d| !defaults.contains_key(d.key))
+                .map(|d| format!("{}: doc for unknown option {}", self.name, d.key)),
+        );
+        bad
+    }
+}
+
+fn defaults_of<C: Default + Serialize>() -> serde_json::Map<String, serde_json::Value> {
+    match serde_json::to_value(C::default()) {
+        Ok(serde_json::Value::Object(m)) => m,
+        _ => serde_json::Map::new(),
+    }
+}
+
+/// Every registered tracer, in the order the CLI lists them.
+pub static REGISTRY: &[Entry] = &[
+    Entry {
+        name: "naive",
+        paper: "ground truth",
+        summary: "every ray against every triangle (threaded); the answer every tracer must equal",
+        create: |opts| {
+            no_options("naive", opts)?;
+            Ok(Box::new(naive::Naive::new()))
+        },
+        defaults: serde_json::Map::new,
+        option_docs: &[],
+        presets: &[],
+        built_counters: &[],
+        work_counters: naive::COUNTERS,
+    },
+    Entry {
+        name: "bvh",
+        paper: "baseline: binned SAH BVH (Wald 2007), pbrt-v4 traversal",
+        summary: "static binned-SAH bounding volume hierarchy, rebuilt (or refitted) each frame",
+        create: |opts| Ok(Box::new(bvh::BvhTracer::new(config_from_opts("bvh", opts)?)?)),
+        defaults: defaults_of::<bvh::Config>,
+        option_docs: bvh::OPTION_DOCS,
+        presets: bvh::PRESETS,
+        built_counters: bvh::COUNTERS.0,
+        work_counters: bvh::COUNTERS.1,
+    },
+    Entry {
+        name: "dacrt",
+        paper: "Mora 2011, Naive ray-tracing: a divide-and-conquer approach",
+        summary: "divide-and-conquer ray tracing: no stored tree, rays and triangles filtered in place each call",
+        create: |opts| Ok(Box::new(dacrt::Dacrt::new(config_from_opts("dacrt", opts)?))),
+        defaults: defaults_of::<dacrt::Config>,
+        option_docs: dacrt::OPTION_DOCS,
+        presets: dacrt::PRESETS,
+        built_counters: dacrt::COUNTERS.0,
+        work_counters: dacrt::COUNTERS.1,
+    },
+];
 
 /// Names of all registered tracers, in the order the CLI lists them.
-pub const NAMES: &[&str] = &["naive", "bvh", "dacrt"];
+pub fn names() -> Vec<&'static str> {
+    REGISTRY.iter().map(|e| e.name).collect()
+}
+
+/// The registry entry `name`.
+pub fn entry(name: &str) -> Result<&'static Entry> {
+    REGISTRY.iter().find(|e| e.name == name).ok_or_else(|| {
+        Error::Invalid(format!(
+            "unknown tracer {name:?}; available: {}",
+            names().join(", ")
+        ))
+    })
+}
 
 /// Builds the tracer `name` with options `key=value` (each tracer documents its keys in its
 /// `Config`; unknown keys are an error).
 pub fn create(name: &str, opts: &[(String, String)]) -> Result<Box<dyn Tracer>> {
-    match name {
-        "naive" => {
-            no_options(name, opts)?;
-            Ok(Box::new(naive::Naive::new()))
-        }
-        "bvh" => Ok(Box::new(bvh::BvhTracer::new(config_from_opts(
-            name, opts,
-        )?)?)),
-        "dacrt" => Ok(Box::new(dacrt::Dacrt::new(config_from_opts(name, opts)?))),
-        _ => Err(Error::Invalid(format!(
-            "unknown tracer {name:?}; available: {}",
-            NAMES.join(", ")
-        ))),
-    }
+    entry(name)?.create(opts)
 }
 
 fn no_options(name: &str, opts: &[(String, String)]) -> Result<()> {
@@ -48,15 +194,23 @@ fn no_options(name: &str, opts: &[(String, String)]) -> Result<()> {
 
 /// Parses `key=value` options into a tracer's `Config` (a serde struct with
 /// `#[serde(default, deny_unknown_fields)]`): values that parse as JSON (numbers, booleans) are
-/// taken as such, others as strings.
-pub fn config_from_opts<C: DeserializeOwned>(tracer: &str, opts: &[(String, String)]) -> Result<C> {
+/// taken as such, others as strings. An unknown key's error lists the valid ones.
+pub fn config_from_opts<C: DeserializeOwned + Default + Serialize>(
+    tracer: &str,
+    opts: &[(String, String)],
+) -> Result<C> {
     let mut obj = serde_json::Map::new();
     for (k, v) in opts {
         let val = serde_json::from_str(v).unwrap_or_else(|_| serde_json::Value::String(v.clone()));
         obj.insert(k.clone(), val);
     }
-    serde_json::from_value(serde_json::Value::Object(obj))
-        .map_err(|e| Error::Invalid(format!("tracer {tracer}: bad option: {e}")))
+    serde_json::from_value(serde_json::Value::Object(obj)).map_err(|e| {
+        let keys: Vec<String> = defaults_of::<C>().keys().cloned().collect();
+        Error::Invalid(format!(
+            "tracer {tracer}: bad option: {e} (options: {}; `raysift tracers --verbose` lists their defaults and meanings)",
+            keys.join(", ")
+        ))
+    })
 }
 
 /// Splits `key=value` strings.
@@ -68,4 +222,48 @@ pub fn parse_opts(raw: &[String]) -> Result<Vec<(String, String)>> {
                 .ok_or_else(|| Error::Invalid(format!("tracer option {s:?}: expected key=value")))
         })
         .collect()
+}
+
+/// `key=value` pairs of a preset, owned (for [`create`]).
+pub fn preset_opts(p: &Preset) -> Vec<(String, String)> {
+    p.opts
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_option_is_documented_and_every_preset_builds() {
+        for e in REGISTRY {
+            assert!(
+                e.undocumented_options().is_empty(),
+                "{:?}",
+                e.undocumented_options()
+            );
+            assert!(!e.paper.is_empty() && !e.summary.is_empty());
+            e.create(&[]).unwrap();
+            for p in e.presets {
+                e.create(&preset_opts(p))
+                    .unwrap_or_else(|err| panic!("{} preset {}: {err}", e.name, p.name));
+            }
+            assert!(!e.work_counters.is_empty(), "{} names no counters", e.name);
+            assert_eq!(create(e.name, &[]).unwrap().name(), e.name);
+        }
+        assert_eq!(names()[0], "naive");
+    }
+
+    #[test]
+    fn unknown_names_and_options_say_what_is_allowed() {
+        let e = create("nope", &[]).err().unwrap().to_string();
+        assert!(e.contains("nope") && e.contains("dacrt"), "{e}");
+        let e = create("bvh", &[("bins_".into(), "3".into())])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("bins_") && e.contains("max_leaf"), "{e}");
+    }
 }

@@ -1,11 +1,16 @@
 //! `bvh`: a static binned-SAH bounding volume hierarchy, the baseline the papers compare against.
 //!
-//! **Build**: binned SAH (Wald 2007, "On fast construction of SAH-based bounding volume
+//! **Build**: the shared [`crate::accel::bvh`] builder (binned SAH (Wald 2007, "On fast construction of SAH-based bounding volume
 //! hierarchies"): centroids binned into [`Config::bins`] slots on each axis, the split with the
 //! lowest SAH cost taken, a leaf made when a node has at most [`Config::max_leaf`] triangles and
 //! the SAH says splitting does not pay. Parallel with rayon above [`Config::parallel_threshold`]
 //! triangles (see `build`). Identical centroids, flat nodes and very deep trees fall back to object
-//! median splits, so any soup builds and the depth is bounded.
+//! median splits, so any soup builds and the depth is bounded). **Update** ([`Config::update`]):
+//! a scene change rebuilds the tree by default (the static baseline); `refit` keeps the tree and
+//! recomputes its boxes ([`Bvh::refit`]) when the triangles moved but stayed the same
+//! triangles, and `auto` refits until the tree's SAH cost has grown by
+//! [`Config::rebuild_ratio`] over its last build, then rebuilds (refit vs rebuild is measured in
+//! BENCHMARKS.md, § BVH refit vs rebuild).
 //!
 //! **Traversal**: as pbrt's `BVHAggregate` (flat depth-first array, fixed stack, near child
 //! first), except that both children's boxes are tested at their parent with one 4-wide SIMD slab
@@ -35,7 +40,7 @@
 //! possible 5–15% regression for coherent rays that the SIMD test did not pay back; a
 //! branch-mask (non-octant) variant was no better.
 //!
-//! **Memory layout** (bytes per triangle; [`Bvh::bytes`]):
+//! **Memory layout** (bytes per triangle; [`BvhTracer::bytes`]):
 //! - nodes: 32 B each (box, child-pair/first-triangle offset, count, axis), stored as sibling
 //!   pairs in one 64-byte cache line ([`NodePair`]: both boxes as structure of arrays, 48 B, then
 //!   both offsets, counts and axes; [`Node`] is the unpacked view), since traversal reads and
@@ -48,30 +53,28 @@
 //! so about 77 B per triangle (measured on sphere:1M and soup:1M) on top of the scene's own 36 B
 //! soup. The build temporarily holds 32 B per triangle of primitive references.
 
-mod build;
 #[cfg(test)]
 mod tests;
 mod traverse;
 
-pub use build::{MAX_BINS, MAX_DEPTH};
+pub use crate::accel::bvh::{BuildConfig, Bvh, Node, NodePair, MAX_BINS, MAX_DEPTH};
 
 use crate::error::{Error, Result};
-use crate::geom::{Aabb, BoxPair};
 use crate::rays::{HitBatch, RayBatch};
-use crate::scene::Scene;
-use crate::tracer::{par_occlusion_chunks, par_ray_chunks, Stats, Tracer};
+use crate::scene::{Change, Scene, Stamp, TriangleSoup};
+use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tracer};
+use crate::tracers::{OptionDoc, Preset};
 use glam::Vec3;
-use serde::Deserialize;
-use std::sync::Arc;
+use serde::{Deserialize, Serialize};
 
 /// Rays per parallel task (as `naive`): amortises scheduling, balances 2–64 cores.
 const CHUNK: usize = 256;
 
-/// Tree size (bytes, [`Bvh::bytes`]) above which `lanes=0` traces 8 rays in flight.
+/// Tree size (bytes, [`LeafBvh::bytes`]) above which `lanes=0` traces 8 rays in flight.
 pub const AUTO_LANES_BYTES: usize = 4 << 20;
 
 /// Build options (`bvh:key=value` on the command line). Defaults are the fields' documented values.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct Config {
     /// Bins per axis for the SAH sweep (2..=32). Default 16: within about 1% of the cost of a full
@@ -95,6 +98,27 @@ pub struct Config {
     /// dominate), else 1 (in cache the interleaving's bookkeeping and mixed branch history cost
     /// more than it saves: sphere:10k camera rays 5.0 vs 3.9 Mrays per CPU-second).
     pub lanes: usize,
+    /// What a prepare does when the scene changed but kept its triangles (meshes moved or
+    /// deformed): `rebuild` (build from scratch, as for a new scene), `refit` (same tree, new
+    /// boxes: O(T), quality degrades as triangles drift) or `auto` (refit while the SAH cost
+    /// stays within `rebuild_ratio` of the last build's, else rebuild). Default `rebuild`.
+    pub update: Update,
+    /// With `update=auto`: rebuild once the refitted tree's SAH cost exceeds this multiple of
+    /// the last build's (>= 1). Default 1.5.
+    pub rebuild_ratio: f32,
+}
+
+/// [`Config::update`].
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Update {
+    /// Build from scratch at every change.
+    #[default]
+    Rebuild,
+    /// Keep the tree, recompute its boxes.
+    Refit,
+    /// Refit until the SAH cost has grown by `rebuild_ratio`, then rebuild.
+    Auto,
 }
 
 impl Default for Config {
@@ -106,356 +130,156 @@ impl Default for Config {
             intersection_cost: 1.0,
             parallel_threshold: 4096,
             lanes: 0,
+            update: Update::Rebuild,
+            rebuild_ratio: 1.5,
         }
     }
 }
 
 impl Config {
+    /// The builder's part of the options.
+    pub fn build_config(&self) -> BuildConfig {
+        BuildConfig {
+            bins: self.bins,
+            max_leaf: self.max_leaf,
+            traversal_cost: self.traversal_cost,
+            intersection_cost: self.intersection_cost,
+            parallel_threshold: self.parallel_threshold,
+        }
+    }
+
     /// Checks the ranges documented on the fields.
     pub fn check(&self) -> Result<()> {
-        let bad = |m: String| Err(Error::Invalid(format!("tracer bvh: {m}")));
-        if !(2..=MAX_BINS).contains(&self.bins) {
-            return bad(format!("bins must be in 2..={MAX_BINS}, got {}", self.bins));
-        }
-        if !(1..=255).contains(&self.max_leaf) {
-            return bad(format!(
-                "max_leaf must be in 1..=255, got {}",
-                self.max_leaf
-            ));
-        }
+        self.build_config().check("tracer bvh")?;
         if self.lanes > traverse::MAX_LANES {
-            return bad(format!(
-                "lanes must be in 0..={}, got {}",
+            return Err(Error::Invalid(format!(
+                "tracer bvh: lanes must be in 0..={}, got {}",
                 traverse::MAX_LANES,
                 self.lanes
-            ));
+            )));
         }
-        let ok_trav = self.traversal_cost >= 0.0 && self.traversal_cost.is_finite();
-        let ok_isect = self.intersection_cost > 0.0 && self.intersection_cost.is_finite();
-        if !ok_trav || !ok_isect {
-            return bad("costs must be finite, traversal >= 0, intersection > 0".into());
+        if !(self.rebuild_ratio >= 1.0 && self.rebuild_ratio.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "tracer bvh: rebuild_ratio must be finite and >= 1, got {}",
+                self.rebuild_ratio
+            )));
         }
         Ok(())
     }
 }
 
-/// One node, 32 bytes (pbrt's `LinearBVHNode` fields).
-///
-/// Interior nodes have `count == 0` and `offset` is the index of the [`NodePair`] holding their
-/// two children (left in slot 0). Leaves hold `count` triangles at positions
-/// `offset..offset + count` of the leaf-ordered arrays.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(32))]
-pub struct Node {
-    /// Box minimum.
-    pub min: Vec3,
-    /// Leaf: first triangle position; interior: index of the children's pair.
-    pub offset: u32,
-    /// Box maximum.
-    pub max: Vec3,
-    /// Triangles in a leaf, 0 for interior nodes.
-    pub count: u16,
-    /// Split axis (0, 1, 2) of an interior node (informational: traversal orders by distance).
-    pub axis: u8,
-    _pad: u8,
-}
+/// One line per option, for `raysift tracers --verbose` (details on the fields above).
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc { key: "bins", doc: "bins per axis for the SAH sweep (2..=32)" },
+    OptionDoc { key: "max_leaf", doc: "most triangles in a leaf (1..=255)" },
+    OptionDoc { key: "traversal_cost", doc: "SAH cost of an interior node, relative to a triangle test" },
+    OptionDoc { key: "intersection_cost", doc: "SAH cost of a ray/triangle test" },
+    OptionDoc { key: "parallel_threshold", doc: "nodes with at least this many triangles build in parallel" },
+    OptionDoc { key: "lanes", doc: "rays in flight per thread (0: 8 when the tree exceeds 4 MiB, else 1)" },
+    OptionDoc { key: "update", doc: "on a scene change: rebuild, refit, or auto (refit until the SAH grows by rebuild_ratio)" },
+    OptionDoc { key: "rebuild_ratio", doc: "update=auto: rebuild when the SAH cost exceeds this multiple of the last build's" },
+];
 
-const _: () = assert!(std::mem::size_of::<Node>() == 32);
+/// Configurations the conformance suite checks besides the defaults.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "eight lanes",
+        opts: &[("lanes", "8")],
+    },
+    Preset {
+        name: "small leaves, one lane",
+        opts: &[
+            ("max_leaf", "2"),
+            ("parallel_threshold", "64"),
+            ("lanes", "1"),
+        ],
+    },
+    Preset {
+        name: "two bins, leaves of one, three lanes",
+        opts: &[
+            ("bins", "2"),
+            ("max_leaf", "1"),
+            ("parallel_threshold", "8"),
+            ("lanes", "3"),
+        ],
+    },
+    Preset {
+        name: "no traversal cost",
+        opts: &[("max_leaf", "1"), ("traversal_cost", "0")],
+    },
+    Preset {
+        name: "refit",
+        opts: &[("update", "refit")],
+    },
+    Preset {
+        name: "auto update",
+        opts: &[("update", "auto"), ("rebuild_ratio", "1")],
+    },
+];
 
-impl Node {
-    fn leaf(b: Aabb, first: u32, count: u16) -> Self {
-        Self {
-            min: b.min,
-            max: b.max,
-            offset: first,
-            count,
-            axis: 0,
-            _pad: 0,
-        }
-    }
-
-    fn interior(b: Aabb, axis: u8, pair: u32) -> Self {
-        Self {
-            min: b.min,
-            max: b.max,
-            offset: pair,
-            count: 0,
-            axis,
-            _pad: 0,
-        }
-    }
-
-    /// True for leaves.
-    #[inline(always)]
-    pub fn is_leaf(&self) -> bool {
-        self.count != 0
-    }
-
-    /// The node's box.
-    pub fn bounds(&self) -> Aabb {
-        Aabb::new(self.min, self.max)
-    }
-}
-
-/// Two sibling nodes in one 64-byte cache line, boxes as structure of arrays ([`BoxPair`]):
-/// traversal tests both children of a node at once with one SIMD slab test
-/// ([`SlabRay::entry2`](crate::geom::SlabRay::entry2)), so keeping siblings together means one
-/// cache line and one 4-wide test per visited interior node.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(64))]
-pub struct NodePair {
-    /// Both children's boxes.
-    pub boxes: BoxPair,
-    /// Per child: leaf: first triangle position; interior: index of its children's pair.
-    pub offset: [u32; 2],
-    /// Per child: triangles in a leaf, 0 for interior nodes.
-    pub count: [u16; 2],
-    /// Per child: split axis of an interior node (informational).
-    pub axis: [u8; 2],
-    _pad: [u8; 2],
-}
-
-const _: () = assert!(std::mem::size_of::<NodePair>() == 64);
-
-impl NodePair {
-    /// Placeholder (also the unused second slot of pair 0): empty-box leaves.
-    pub const UNUSED: NodePair = NodePair {
-        boxes: BoxPair::EMPTY,
-        offset: [0; 2],
-        count: [0; 2],
-        axis: [0; 2],
-        _pad: [0; 2],
-    };
-
-    /// The pair of `nodes` (left in slot 0).
-    pub fn new(nodes: [Node; 2]) -> Self {
-        let mut p = Self::UNUSED;
-        p.set(0, nodes[0]);
-        p.set(1, nodes[1]);
-        p
-    }
-
-    /// Node in slot `i` (0 or 1).
-    #[inline(always)]
-    pub fn node(&self, i: usize) -> Node {
-        let (min, max) = self.boxes.get(i);
-        Node {
-            min,
-            max,
-            offset: self.offset[i],
-            count: self.count[i],
-            axis: self.axis[i],
-            _pad: 0,
-        }
-    }
-
-    /// Both nodes.
-    pub fn nodes(&self) -> [Node; 2] {
-        [self.node(0), self.node(1)]
-    }
-
-    /// Stores `n` in slot `i` (0 or 1).
-    pub fn set(&mut self, i: usize, n: Node) {
-        self.boxes.set(i, n.min, n.max);
-        self.offset[i] = n.offset;
-        self.count[i] = n.count;
-        self.axis[i] = n.axis;
-    }
-}
-
-/// The built hierarchy: node pairs, ids and triangle copies in leaf order.
+/// The tree with the triangles' corners copied in leaf order: what traversal reads (a leaf's
+/// triangles are one contiguous run instead of a gather from the scene's soup).
 #[derive(Clone, Debug, Default)]
-pub struct Bvh {
-    /// Node pairs in depth-first order of their parents: pair 0 holds the root in slot 0 (slot 1
-    /// unused); empty when the scene has no triangles.
-    pub pairs: Vec<NodePair>,
-    /// Triangle id at each leaf position.
-    pub ids: Vec<u32>,
-    /// Corners of the triangle at each leaf position (a copy of the scene's soup).
+pub struct LeafBvh {
+    /// The hierarchy.
+    pub tree: Bvh,
+    /// Corners of the triangle at each leaf position.
     pub tris: Vec<[Vec3; 3]>,
 }
 
-impl Bvh {
-    /// Builds over the scene's world soup.
-    pub fn build(scene: &Scene, cfg: &Config) -> Result<Self> {
-        cfg.check()?;
-        let soup = scene.triangles();
-        let b = build::build(soup, cfg);
-        let tris = {
-            use rayon::prelude::*;
-            b.ids.par_iter().map(|&i| soup.get(i as usize)).collect()
-        };
-        let mut bvh = Self {
-            pairs: b.pairs,
-            ids: b.ids,
-            tris,
-        };
-        // Collecting may over-allocate; the tree lives long, so hand the slack back.
-        bvh.pairs.shrink_to_fit();
-        bvh.ids.shrink_to_fit();
-        bvh.tris.shrink_to_fit();
-        Ok(bvh)
+impl std::ops::Deref for LeafBvh {
+    type Target = Bvh;
+    fn deref(&self) -> &Bvh {
+        &self.tree
     }
+}
 
+impl LeafBvh {
     /// Bytes held (nodes + ids + triangle copies).
     pub fn bytes(&self) -> usize {
-        self.pairs.capacity() * std::mem::size_of::<NodePair>()
-            + self.ids.capacity() * 4
-            + self.tris.capacity() * std::mem::size_of::<[Vec3; 3]>()
+        self.tree.bytes() + self.tris.capacity() * std::mem::size_of::<[Vec3; 3]>()
     }
 
-    /// The root, if any.
-    pub fn root(&self) -> Option<Node> {
-        self.pairs.first().map(|p| p.node(0))
+    /// (Re)writes the leaf-ordered copies from the soup.
+    fn copy_triangles(&mut self, soup: &TriangleSoup) {
+        use rayon::prelude::*;
+        self.tris.clear();
+        self.tris
+            .par_extend(self.tree.ids.par_iter().map(|&i| soup.get(i as usize)));
+        self.tris.shrink_to_fit();
     }
 
-    /// The two children of interior node `n`.
-    #[inline(always)]
-    pub fn children(&self, n: &Node) -> [Node; 2] {
-        self.pairs[n.offset as usize].nodes()
-    }
-
-    /// All nodes in use (the root and every pair after the first).
-    pub fn nodes(&self) -> impl Iterator<Item = Node> + '_ {
-        self.root()
-            .into_iter()
-            .chain(self.pairs.iter().skip(1).flat_map(|p| p.nodes()))
-    }
-
-    /// Number of nodes in use.
-    pub fn node_count(&self) -> usize {
-        if self.pairs.is_empty() {
-            0
-        } else {
-            2 * self.pairs.len() - 1
-        }
-    }
-
-    /// Number of leaves.
-    pub fn leaf_count(&self) -> usize {
-        self.nodes().filter(|n| n.is_leaf()).count()
-    }
-
-    /// SAH cost of the tree (traversal cost 1 per interior node, 1 per triangle, weighted by
-    /// area relative to the root): a deterministic quality measure for comparing builds.
-    pub fn sah_cost(&self) -> f64 {
-        let Some(root) = self.root() else {
-            return 0.0;
-        };
-        let ra = root.bounds().surface_area() as f64;
-        // Also catches NaN (flat or empty root).
-        if ra.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            return 0.0;
-        }
-        self.nodes()
-            .map(|n| {
-                let a = n.bounds().surface_area() as f64 / ra;
-                if n.is_leaf() {
-                    a * n.count as f64
-                } else {
-                    a
-                }
-            })
-            .sum()
-    }
-
-    /// Maximum depth (root at 0).
-    pub fn depth(&self) -> usize {
-        fn rec(bvh: &Bvh, n: &Node) -> usize {
-            if n.is_leaf() {
-                0
-            } else {
-                let [l, r] = bvh.children(n);
-                1 + rec(bvh, &l).max(rec(bvh, &r))
-            }
-        }
-        self.root().map_or(0, |r| rec(self, &r))
-    }
-
-    /// Checks the invariants against the scene it was built from: pair offsets in range and in
-    /// depth-first order (every pair reached exactly once from the root, a node's children's
-    /// pair allocated before its left subtree's); every box contains its children's boxes and its
-    /// triangles' boxes; depth below [`MAX_DEPTH`]; leaf ranges tile `0..n` in order, so every
-    /// triangle id appears exactly once; the triangle copies equal the scene's corners.
+    /// [`Bvh::validate`] against the scene's triangles, and the copies equal its corners.
     pub fn validate(&self, scene: &Scene) -> Result<()> {
-        let bad = |m: String| Err(Error::Invalid(format!("bvh invalid: {m}")));
         let soup = scene.triangles();
-        let n = soup.len();
-        if self.ids.len() != n || self.tris.len() != n {
-            return bad(format!(
-                "{} ids, {} copies for {n} triangles",
-                self.ids.len(),
-                self.tris.len()
-            ));
+        self.tree.validate(soup)?;
+        if self.tris.len() != soup.len() {
+            return Err(Error::Invalid(format!(
+                "bvh invalid: {} copies for {} triangles",
+                self.tris.len(),
+                soup.len()
+            )));
         }
-        let Some(root) = self.root() else {
-            return if n == 0 {
-                Ok(())
-            } else {
-                bad("no nodes".into())
-            };
-        };
-        let mut seen = vec![false; n];
-        for (k, &id) in self.ids.iter().enumerate() {
-            let id = id as usize;
-            if id >= n || std::mem::replace(&mut seen[id], true) {
-                return bad(format!("id {id} at position {k} out of range or repeated"));
+        for (k, &id) in self.tree.ids.iter().enumerate() {
+            if self.tris[k] != soup.get(id as usize) {
+                return Err(Error::Invalid(format!(
+                    "bvh invalid: copy at position {k} differs from triangle {id}"
+                )));
             }
-            if self.tris[k] != soup.get(id) {
-                return bad(format!("copy at position {k} differs from triangle {id}"));
-            }
-        }
-        let mut next_pair = 1usize;
-        let mut next_pos = 0usize;
-        let mut stack = vec![(root, 0usize)];
-        while let Some((node, depth)) = stack.pop() {
-            if depth >= MAX_DEPTH {
-                return bad(format!("node at depth {depth} >= {MAX_DEPTH}"));
-            }
-            let b = node.bounds();
-            if node.is_leaf() {
-                let (o, c) = (node.offset as usize, node.count as usize);
-                if o != next_pos || o + c > n {
-                    return bad(format!("leaf range {o}+{c}, expected start {next_pos}"));
-                }
-                next_pos += c;
-                for k in o..o + c {
-                    let tb = soup.bounds(self.ids[k] as usize);
-                    if !b.contains_box(&tb) {
-                        return bad(format!("leaf box {b:?} misses triangle box {tb:?}"));
-                    }
-                }
-            } else {
-                let p = node.offset as usize;
-                if p != next_pair || p >= self.pairs.len() {
-                    return bad(format!("children at pair {p}, expected {next_pair}"));
-                }
-                next_pair += 1;
-                let [l, r] = self.pairs[p].nodes();
-                for c in [l, r] {
-                    if !b.contains_box(&c.bounds()) {
-                        return bad(format!("pair {p}: a child's box is outside its parent's"));
-                    }
-                }
-                stack.push((r, depth + 1));
-                stack.push((l, depth + 1));
-            }
-        }
-        if next_pair != self.pairs.len() || next_pos != n {
-            return bad(format!(
-                "reached {next_pair} of {} pairs, {next_pos} of {n} triangles",
-                self.pairs.len()
-            ));
         }
         Ok(())
     }
 }
 
-/// The `bvh` tracer: a [`Bvh`] rebuilt from scratch at every prepare.
+/// The `bvh` tracer: a [`Bvh`] built at the first prepare and rebuilt (or refitted, see
+/// [`Config::update`]) when the scene changes.
 #[derive(Default)]
 pub struct BvhTracer {
     cfg: Config,
-    bvh: Bvh,
+    bvh: LeafBvh,
+    stamp: Stamp,
+    /// SAH cost of the last full build (`update=auto`).
+    built_sah: f64,
 }
 
 impl BvhTracer {
@@ -464,12 +288,14 @@ impl BvhTracer {
         cfg.check()?;
         Ok(Self {
             cfg,
-            bvh: Bvh::default(),
+            bvh: LeafBvh::default(),
+            stamp: Stamp::default(),
+            built_sah: 0.0,
         })
     }
 
-    /// The current hierarchy.
-    pub fn bvh(&self) -> &Bvh {
+    /// The current hierarchy and its triangle copies.
+    pub fn bvh(&self) -> &LeafBvh {
         &self.bvh
     }
 
@@ -488,41 +314,102 @@ impl Tracer for BvhTracer {
         "bvh"
     }
 
-    fn prepare(&mut self, scene: Arc<Scene>) -> Result<Stats> {
-        // Drop the old tree first so peak memory is one tree, not two.
-        self.bvh = Bvh::default();
-        self.bvh = Bvh::build(&scene, &self.cfg)?;
-        Ok(Stats {
-            nodes: self.bvh.node_count() as u64,
-            leaves: self.bvh.leaf_count() as u64,
-            peak_bytes: self.bvh.bytes() as u64,
-            ..Stats::default()
-        })
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        let soup = scene.triangles();
+        let kept = matches!(scene.changes_since(self.stamp), Change::Meshes { .. });
+        let mut built = Built::default();
+        let refit = kept
+            && match self.cfg.update {
+                Update::Rebuild => false,
+                Update::Refit => true,
+                Update::Auto => {
+                    let mut trial = self.bvh.tree.clone();
+                    trial.refit(soup);
+                    trial.sah_cost() <= self.cfg.rebuild_ratio as f64 * self.built_sah
+                }
+            };
+        if scene.changes_since(self.stamp) == Change::None {
+            // Nothing moved: the tree stands.
+        } else if refit {
+            self.stamp = Stamp::default();
+            built.refitted = self.bvh.tree.refit(soup) as u64;
+            self.bvh.copy_triangles(soup);
+        } else {
+            // Drop the old tree first so peak memory is one tree, not two.
+            self.bvh = LeafBvh::default();
+            self.stamp = Stamp::default();
+            self.bvh.tree = Bvh::build(soup, &self.cfg.build_config())?;
+            self.bvh.copy_triangles(soup);
+            self.built_sah = self.bvh.tree.sah_cost();
+            built.builds = 1;
+        }
+        self.stamp = scene.stamp();
+        built.nodes = self.bvh.node_count() as u64;
+        built.leaves = self.bvh.leaf_count() as u64;
+        Ok(Stats::prepared(&built, self.bvh.bytes()))
     }
 
-    fn intersect(&self, rays: &RayBatch, hits: &mut HitBatch) -> Stats {
-        let lanes = self.lanes();
-        par_ray_chunks(rays, hits, CHUNK, |range, out| {
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        // Per-ray cost is recorded by the one-ray walk (the same walk and counts, ray by ray).
+        let lanes = if cost.is_some() { 1 } else { self.lanes() };
+        let c: traverse::Counters = par_ray_chunks(rays, hits, cost, CHUNK, |range, out, cost| {
             if lanes == 1 {
-                traverse::closest_chunk(&self.bvh, rays, range, out)
+                traverse::closest_chunk(&self.bvh, rays, range, out, cost)
             } else {
                 traverse::closest_chunk_interleaved(&self.bvh, rays, range, lanes, out)
             }
-        })
+        });
+        Ok(Stats::traced(rays.len(), &c))
     }
 
-    fn occluded(&self, rays: &RayBatch, occluded: &mut Vec<bool>) -> Stats {
-        let lanes = self.lanes();
-        par_occlusion_chunks(rays, occluded, CHUNK, |range, out| {
-            if lanes == 1 {
-                traverse::occluded_chunk(&self.bvh, rays, range, out)
-            } else {
-                traverse::occluded_chunk_interleaved(&self.bvh, rays, range, lanes, out)
-            }
-        })
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let lanes = if cost.is_some() { 1 } else { self.lanes() };
+        let c: traverse::Counters =
+            par_occlusion_chunks(rays, occluded, cost, CHUNK, |range, out, cost| {
+                if lanes == 1 {
+                    traverse::occluded_chunk(&self.bvh, rays, range, out, cost)
+                } else {
+                    traverse::occluded_chunk_interleaved(&self.bvh, rays, range, lanes, out)
+                }
+            });
+        Ok(Stats::traced(rays.len(), &c))
     }
 
     fn bytes(&self) -> usize {
         self.bvh.bytes()
     }
 }
+
+crate::counters! {
+    /// What a `bvh` prepare builds.
+    pub struct Built {
+        /// Full builds (0 when the tree was refitted or kept).
+        builds,
+        /// Nodes refitted (0 after a build).
+        refitted,
+        /// Nodes of the tree (interior and leaves).
+        nodes,
+        /// Leaves.
+        leaves,
+    }
+}
+
+/// Counter docs, for the registry: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (
+    <Built as crate::tracer::CounterSet>::DOCS,
+    <traverse::Counters as crate::tracer::CounterSet>::DOCS,
+);

@@ -9,21 +9,22 @@ use crate::scene::{procedural, Mesh};
 use crate::tracers::naive::Naive;
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
+use std::sync::Arc;
 
-fn tracers(scene: &Arc<Scene>, cfg: Config) -> (Naive, BvhTracer) {
+fn tracers(scene: &Scene, cfg: Config) -> (Naive, BvhTracer) {
     let mut naive = Naive::new();
-    naive.prepare(scene.clone()).unwrap();
+    naive.prepare(scene).unwrap();
     let mut bvh = BvhTracer::new(cfg).unwrap();
-    bvh.prepare(scene.clone()).unwrap();
+    bvh.prepare(scene).unwrap();
     bvh.bvh().validate(scene).unwrap();
     (naive, bvh)
 }
 
 /// Closest hits and occlusion of `rays` equal naive's exactly; returns the hit count.
-fn assert_same(scene: &Arc<Scene>, cfg: Config, rays: &RayBatch) -> usize {
+fn assert_same(scene: &Scene, cfg: Config, rays: &RayBatch) -> usize {
     let (naive, bvh) = tracers(scene, cfg);
-    let (want, _) = naive.intersect_timed(rays);
-    let (got, stats) = bvh.intersect_timed(rays);
+    let (want, _) = naive.intersect_timed(scene, rays).unwrap();
+    let (got, stats) = bvh.intersect_timed(scene, rays).unwrap();
     assert_eq!(stats.rays, rays.len() as u64);
     for i in 0..rays.len() {
         assert_eq!(
@@ -48,8 +49,8 @@ fn assert_same(scene: &Arc<Scene>, cfg: Config, rays: &RayBatch) -> usize {
             want.prim[i]
         );
     }
-    let (want_o, _) = naive.occluded_timed(rays);
-    let (got_o, _) = bvh.occluded_timed(rays);
+    let (want_o, _) = naive.occluded_timed(scene, rays).unwrap();
+    let (got_o, _) = bvh.occluded_timed(scene, rays).unwrap();
     for i in 0..rays.len() {
         assert_eq!(
             got_o[i],
@@ -138,10 +139,10 @@ fn axis_rays(b: Aabb) -> RayBatch {
 
 /// Camera rays whose `tmax` (or `tmin`) is set exactly to naive's hit distance, and a few
 /// just before/after it: the inclusive clip ends must give the same answers.
-fn clipped_rays(scene: &Arc<Scene>, base: &RayBatch) -> RayBatch {
+fn clipped_rays(scene: &Scene, base: &RayBatch) -> RayBatch {
     let mut naive = Naive::new();
-    naive.prepare(scene.clone()).unwrap();
-    let (h, _) = naive.intersect_timed(base);
+    naive.prepare(scene).unwrap();
+    let (h, _) = naive.intersect_timed(scene, base).unwrap();
     let mut out = RayBatch::default();
     for i in 0..base.len() {
         let r = base.get(i);
@@ -224,10 +225,10 @@ fn clipped_intervals_on_soup_and_sphere() {
 fn empty_batch_and_empty_scene() {
     let scene = Arc::new(procedural::soup(50, 1));
     let (_, bvh) = tracers(&scene, Config::default());
-    let (h, s) = bvh.intersect_timed(&RayBatch::default());
+    let (h, s) = bvh.intersect_timed(&scene, &RayBatch::default()).unwrap();
     assert!(h.is_empty());
     assert_eq!(s.rays, 0);
-    let (o, _) = bvh.occluded_timed(&RayBatch::default());
+    let (o, _) = bvh.occluded_timed(&scene, &RayBatch::default()).unwrap();
     assert!(o.is_empty());
 
     let empty = Arc::new(Scene::from_meshes("empty", vec![]).unwrap());
@@ -236,10 +237,24 @@ fn empty_batch_and_empty_scene() {
     let (_, bvh) = tracers(&empty, Config::default());
     assert!(bvh.bvh().pairs.is_empty());
 
-    // Before any prepare: every ray misses.
+    // Before any prepare, and after the scene changed: an error, not an answer.
     let fresh = BvhTracer::new(Config::default()).unwrap();
-    let (h, s) = fresh.intersect_timed(&rays);
-    assert_eq!((h.hit_count(), s.rays), (0, 100));
+    let e = fresh
+        .intersect_timed(&scene, &rays)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not prepared"), "{e}");
+    let (_, bvh) = tracers(&scene, Config::default());
+    let mut moved = (*scene).clone();
+    let e = bvh.occluded_timed(&moved, &rays).unwrap_err().to_string();
+    assert!(e.contains("another scene"), "{e}");
+    let mut bvh = bvh;
+    bvh.prepare(&moved).unwrap();
+    moved
+        .set_transform(0, glam::Affine3A::from_translation(Vec3::X))
+        .unwrap();
+    let e = bvh.intersect_timed(&moved, &rays).unwrap_err().to_string();
+    assert!(e.contains("changed since prepare"), "{e}");
 }
 
 /// `copies` copies of the same triangles (same or permuted corners): the tie rule must pick the
@@ -428,10 +443,16 @@ fn one_triangle_and_stats() {
             tmax: f32::INFINITY,
         },
     ]);
-    let (h, s) = bvh.intersect_timed(&rays);
+    let (h, s) = bvh.intersect_timed(&scene, &rays).unwrap();
     assert_eq!(h.prim, vec![0, crate::rays::MISS]);
     assert_eq!(
-        (s.rays, s.ray_box, s.ray_tri, s.leaves, s.nodes),
+        (
+            s.rays,
+            s.work.get("ray_box"),
+            s.work.get("ray_tri"),
+            s.work.get("leaves"),
+            s.work.get("nodes")
+        ),
         (2, 2, 1, 1, 0)
     );
     assert_same(&scene, Config::default(), &rays);
@@ -446,16 +467,18 @@ fn build_is_sane_and_counts_work() {
     assert!(t.depth() < 40, "{}", t.depth());
     // A BVH visits a tiny fraction of what brute force does.
     let rays = camera_rays(&scene, 64);
-    let (_, s) = bvh.intersect_timed(&rays);
-    assert!(s.ray_tri < rays.len() as u64 * 60, "{s:?}");
-    assert!(s.nodes > 0 && s.leaves > 0 && s.ray_box > s.nodes);
+    let (_, s) = bvh.intersect_timed(&scene, &rays).unwrap();
+    let w = &s.work;
+    assert!(w.get("ray_tri") < rays.len() as u64 * 60, "{s:?}");
+    assert!(w.get("nodes") > 0 && w.get("leaves") > 0 && w.get("ray_box") > w.get("nodes"));
     // The parallel and the sequential build give the same tree.
     let seq = Bvh::build(
-        &scene,
+        scene.triangles(),
         &Config {
             parallel_threshold: usize::MAX,
             ..Config::default()
-        },
+        }
+        .build_config(),
     )
     .unwrap();
     assert_eq!(seq.pairs, t.pairs);
@@ -476,35 +499,36 @@ fn config_from_options() {
 #[test]
 fn validate_catches_corruption() {
     let scene = Arc::new(procedural::soup(500, 8));
-    let good = Bvh::build(&scene, &small_cfg()).unwrap();
+    let (_, t) = tracers(&scene, small_cfg());
+    let good = t.bvh().clone();
     good.validate(&scene).unwrap();
     let leaf_pair = (1..good.pairs.len())
         .find(|&p| good.pairs[p].count[0] != 0)
         .unwrap();
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].boxes.x[2] -= 1e-3; // leaf box no longer contains its triangles
+    b.tree.pairs[leaf_pair].boxes.x[2] -= 1e-3; // leaf box no longer contains its triangles
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.ids.swap(0, 1); // copies no longer match ids
+    b.tree.ids.swap(0, 1); // copies no longer match ids
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.ids[1] = b.ids[0];
+    b.tree.ids[1] = b.ids[0];
     b.tris[1] = b.tris[0]; // a triangle twice, another lost
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[leaf_pair].count[0] += 1; // leaf ranges overlap
+    b.tree.pairs[leaf_pair].count[0] += 1; // leaf ranges overlap
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].offset[0] = good.pairs.len() as u32; // child pair out of range
+    b.tree.pairs[0].offset[0] = good.pairs.len() as u32; // child pair out of range
     assert!(b.validate(&scene).is_err());
 
     let mut b = good.clone();
-    b.pairs[0].boxes.y[0] += 0.5; // root does not contain its children
+    b.tree.pairs[0].boxes.y[0] += 0.5; // root does not contain its children
     assert!(b.validate(&scene).is_err());
 }
 
@@ -520,8 +544,8 @@ fn automatic_lanes_follow_the_tree_size() {
     assert!(t.bvh().bytes() > AUTO_LANES_BYTES);
     assert_eq!(t.lanes(), 8);
     let rays = random_in_box(&big.bounds(), 2000, 5);
-    let (want, _) = naive.intersect_timed(&rays);
-    let (got, _) = t.intersect_timed(&rays);
+    let (want, _) = naive.intersect_timed(&big, &rays).unwrap();
+    let (got, _) = t.intersect_timed(&big, &rays).unwrap();
     assert_eq!(want.t, got.t);
     assert_eq!(want.prim, got.prim);
     let (_, t) = tracers(

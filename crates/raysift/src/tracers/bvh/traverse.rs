@@ -7,32 +7,24 @@
 //! instantiated once per ray octant (the const parameters), so the near/far plane choice costs
 //! nothing per node. Counters live in locals and are returned once per chunk.
 
-use super::{Bvh, NodePair, MAX_DEPTH};
+use super::{LeafBvh, Node, NodePair, MAX_DEPTH};
 use crate::geom::{intersect_triangle, SlabRay};
 use crate::rays::{RayBatch, MISS};
-use crate::tracer::{closer, HitsMut, Stats};
+use crate::tracer::{closer, CostMut, HitsMut};
 use glam::Vec3;
 use std::ops::Range;
 
-/// Work counters of one chunk, flushed into [`Stats`] at its end.
-#[derive(Default)]
-struct Counters {
-    ray_box: u64,
-    ray_tri: u64,
-    nodes: u64,
-    leaves: u64,
-}
-
-impl Counters {
-    fn stats(&self, rays: usize) -> Stats {
-        Stats {
-            rays: rays as u64,
-            ray_box: self.ray_box,
-            ray_tri: self.ray_tri,
-            nodes: self.nodes,
-            leaves: self.leaves,
-            ..Stats::default()
-        }
+crate::counters! {
+    /// What a `bvh` trace counts.
+    pub struct Counters {
+        /// Ray/box slab tests (the root's, then two per interior node visited).
+        ray_box,
+        /// Ray/triangle tests.
+        ray_tri,
+        /// Interior nodes visited.
+        nodes,
+        /// Leaves visited.
+        leaves,
     }
 }
 
@@ -95,50 +87,71 @@ macro_rules! by_octant {
     };
 }
 
-/// Closest hits of rays `range`, written to `out` (which starts all-miss).
+/// Charges one ray's share of the counters (`after - before`) to its cost record.
+#[inline]
+fn charge(cost: &mut Option<CostMut<'_>>, k: usize, before: &Counters, after: &Counters) {
+    if let Some(cost) = cost {
+        let box_tests = after.ray_box - before.ray_box;
+        let tri_tests = after.ray_tri - before.ray_tri;
+        // Nodes entered: the root's box, then every node visited below it.
+        let nodes = (after.nodes - before.nodes) + (after.leaves - before.leaves);
+        cost.add(k, nodes, box_tests + tri_tests, tri_tests);
+    }
+}
+
+/// Prepared query of ray `i`, and its entry into the root's box (`None`: it misses the root).
+#[inline(always)]
+fn start_ray(root: &Node, rays: &RayBatch, i: usize, c: &mut Counters) -> Option<(Query, Entry)> {
+    let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
+    let q = Query {
+        o,
+        d,
+        ray: SlabRay::new(o, d),
+        tmin,
+        tmax: rays.tmax[i],
+    };
+    c.ray_box += 1;
+    let t = q.ray.entry(root.min, root.max, tmin, q.tmax)?;
+    let start = Entry {
+        offset: root.offset,
+        count: root.count as u32,
+        t,
+    };
+    Some((q, start))
+}
+
+/// Closest hits of rays `range`, written to `out` (which starts all-miss); per-ray cost into
+/// `cost` when asked.
 pub(super) fn closest_chunk(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     rays: &RayBatch,
     range: Range<usize>,
     out: HitsMut<'_>,
-) -> Stats {
+    mut cost: Option<CostMut<'_>>,
+) -> Counters {
     let mut c = Counters::default();
-    let nrays = range.len();
     let Some(root) = bvh.root() else {
-        return c.stats(nrays);
+        return c;
     };
     let mut stack = [Entry::default(); MAX_DEPTH];
     for (k, i) in range.enumerate() {
-        let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
-        let q = Query {
-            o,
-            d,
-            ray: SlabRay::new(o, d),
-            tmin,
-            tmax: rays.tmax[i],
-        };
-        c.ray_box += 1;
-        let Some(t) = q.ray.entry(root.min, root.max, tmin, q.tmax) else {
-            continue;
-        };
-        let start = Entry {
-            offset: root.offset,
-            count: root.count as u32,
-            t,
-        };
-        let (best_t, best_p, bu, bv) =
-            by_octant!(q.ray.neg, closest_ray(bvh, &q, start, &mut stack, &mut c));
-        if best_p != MISS {
-            (out.t[k], out.prim[k], out.u[k], out.v[k]) = (best_t, best_p, bu, bv);
+        let before = c;
+        if let Some((q, start)) = start_ray(&root, rays, i, &mut c) {
+            let (best_t, best_p, bu, bv) =
+                by_octant!(q.ray.neg, closest_ray(bvh, &q, start, &mut stack, &mut c));
+            if best_p != MISS {
+                (out.t[k], out.prim[k], out.u[k], out.v[k]) = (best_t, best_p, bu, bv);
+            }
         }
+        charge(&mut cost, k, &before, &c);
     }
-    c.stats(nrays)
+    c
 }
 
 /// Closest hit of one ray whose root box is entered: `(t, prim, u, v)`, `prim == MISS` when none.
 #[inline(always)]
 fn closest_ray<const NX: bool, const NY: bool, const NZ: bool>(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     q: &Query,
     start: Entry,
     stack: &mut [Entry; MAX_DEPTH],
@@ -191,46 +204,34 @@ fn closest_ray<const NX: bool, const NY: bool, const NZ: bool>(
     (best_t, best_p, bu, bv)
 }
 
-/// Any-hit of rays `range`, written to `out` (which starts all-false).
+/// Any-hit of rays `range`, written to `out` (which starts all-false); per-ray cost into `cost`
+/// when asked.
 pub(super) fn occluded_chunk(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     rays: &RayBatch,
     range: Range<usize>,
     out: &mut [bool],
-) -> Stats {
+    mut cost: Option<CostMut<'_>>,
+) -> Counters {
     let mut c = Counters::default();
-    let nrays = range.len();
     let Some(root) = bvh.root() else {
-        return c.stats(nrays);
+        return c;
     };
     let mut stack = [Entry::default(); MAX_DEPTH];
     for (k, i) in range.enumerate() {
-        let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
-        let q = Query {
-            o,
-            d,
-            ray: SlabRay::new(o, d),
-            tmin,
-            tmax: rays.tmax[i],
-        };
-        c.ray_box += 1;
-        let Some(t) = q.ray.entry(root.min, root.max, tmin, q.tmax) else {
-            continue;
-        };
-        let start = Entry {
-            offset: root.offset,
-            count: root.count as u32,
-            t,
-        };
-        out[k] = by_octant!(q.ray.neg, occluded_ray(bvh, &q, start, &mut stack, &mut c));
+        let before = c;
+        if let Some((q, start)) = start_ray(&root, rays, i, &mut c) {
+            out[k] = by_octant!(q.ray.neg, occluded_ray(bvh, &q, start, &mut stack, &mut c));
+        }
+        charge(&mut cost, k, &before, &c);
     }
-    c.stats(nrays)
+    c
 }
 
 /// Any hit of one ray whose root box is entered.
 #[inline(always)]
 fn occluded_ray<const NX: bool, const NY: bool, const NZ: bool>(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     q: &Query,
     start: Entry,
     stack: &mut [Entry; MAX_DEPTH],
@@ -302,7 +303,7 @@ struct Lane {
 
 /// The data a node refers to: its children's pair (interior) or its triangles (leaf).
 #[inline(always)]
-fn prefetch_entry(bvh: &Bvh, n: Entry) {
+fn prefetch_entry(bvh: &LeafBvh, n: Entry) {
     if n.count != 0 {
         let t = bvh.tris.as_ptr().wrapping_add(n.offset as usize);
         prefetch(t);
@@ -323,7 +324,7 @@ fn prefetch_entry(bvh: &Bvh, n: Entry) {
 /// exactly those of the one-at-a-time walk. `done(k, lane)` receives each ray that reached
 /// the root's box when it finishes.
 fn interleaved_chunk<const ANY: bool>(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     rays: &RayBatch,
     range: Range<usize>,
     lanes: usize,
@@ -454,35 +455,33 @@ fn interleaved_chunk<const ANY: bool>(
 
 /// [`closest_chunk`] with `lanes` rays in flight (see [`interleaved_chunk`]).
 pub(super) fn closest_chunk_interleaved(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     rays: &RayBatch,
     range: Range<usize>,
     lanes: usize,
     out: HitsMut<'_>,
-) -> Stats {
+) -> Counters {
     let mut c = Counters::default();
-    let nrays = range.len();
     interleaved_chunk::<false>(bvh, rays, range, lanes, &mut c, |l, _| {
         if l.best_p != MISS {
             let k = l.k;
             (out.t[k], out.prim[k], out.u[k], out.v[k]) = (l.best_t, l.best_p, l.bu, l.bv);
         }
     });
-    c.stats(nrays)
+    c
 }
 
 /// [`occluded_chunk`] with `lanes` rays in flight (see [`interleaved_chunk`]).
 pub(super) fn occluded_chunk_interleaved(
-    bvh: &Bvh,
+    bvh: &LeafBvh,
     rays: &RayBatch,
     range: Range<usize>,
     lanes: usize,
     out: &mut [bool],
-) -> Stats {
+) -> Counters {
     let mut c = Counters::default();
-    let nrays = range.len();
     interleaved_chunk::<true>(bvh, rays, range, lanes, &mut c, |l, hit| {
         out[l.k] = hit;
     });
-    c.stats(nrays)
+    c
 }

@@ -13,9 +13,8 @@
 //! equal); below depth [`MAX_SAH_DEPTH`] only median splits are used, so the tree depth stays
 //! below [`MAX_DEPTH`] whatever the input.
 
-use super::{Config, Node, NodePair};
+use super::{BoxSource, BuildConfig, Node, NodePair};
 use crate::geom::Aabb;
-use crate::scene::TriangleSoup;
 use glam::{BVec4A, Vec4};
 use rayon::prelude::*;
 
@@ -38,7 +37,7 @@ pub const MAX_SAH_DEPTH: usize = 64;
 /// has this many entries.
 pub const MAX_DEPTH: usize = MAX_SAH_DEPTH + 34;
 
-/// Most bins a [`Config`] may ask for.
+/// Most bins a [`BuildConfig`] may ask for.
 pub const MAX_BINS: usize = 32;
 
 /// A box in SIMD registers (`w` lanes unused), the build's working type.
@@ -183,9 +182,9 @@ pub struct Built {
     pub ids: Vec<u32>,
 }
 
-/// Builds the tree over all triangles of `soup`.
-pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
-    let n = soup.len();
+/// Builds the tree over the boxes of all primitives of `prims`.
+pub fn build(prims: &(impl BoxSource + ?Sized), cfg: &BuildConfig) -> Built {
+    let n = prims.len();
     if n == 0 {
         return Built {
             pairs: Vec::new(),
@@ -194,7 +193,7 @@ pub fn build(soup: &TriangleSoup, cfg: &Config) -> Built {
     }
     let mut refs: Vec<PrimRef> = (0..n)
         .into_par_iter()
-        .map(|i| PrimRef::new(soup.bounds(i), i as u32))
+        .map(|i| PrimRef::new(prims.bounds(i), i as u32))
         .collect();
     let (bounds, cbounds) = refs.par_chunks(1 << 14).map(bounds_of).reduce(
         || (Box4::EMPTY, Box4::EMPTY),
@@ -293,7 +292,7 @@ struct Split {
 }
 
 struct Ctx<'a> {
-    cfg: &'a Config,
+    cfg: &'a BuildConfig,
 }
 
 impl Ctx<'_> {

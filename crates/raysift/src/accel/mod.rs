@@ -1,0 +1,12 @@
+//! Acceleration structures shared by several techniques, built apart from the tracers that
+//! traverse them (Embree's split of builders from traversal kernels): a builder sees primitive
+//! boxes and centroids, never rays or tracers.
+//!
+//! | structure | used by | module |
+//! |---|---|---|
+//! | binned-SAH BVH, with refit | `bvh` (and cone tracing's BVH walk, next) | [`bvh`] |
+//!
+//! Next: the SAH kd-tree (relevant-triangle shafts and cone tracing) and the bounding-sphere
+//! hierarchy (RTRPS).
+
+pub mod bvh;
