@@ -8,7 +8,9 @@ the full run), one row: DACRT's frame (prepare + trace: it has no structure to k
 build + trace and trace alone, Embree's fastest build + 16-wide packet trace (LOW or MEDIUM, the
 faster per round) and its trace alone, and the ratios the issue sets targets for. Ratios are
 medians of per-round ratios (contenders alternate within a round, so a round shares the machine's
-state), not ratios of medians. Prints a Markdown table.
+state), not ratios of medians; the ratios to Embree are bench/common.py's ratio_to_embree, the
+harness's own (bench/README.md, "Ratio to Embree"). Two targets compare DACRT's whole frame with
+the others' trace alone ("DACRT frame ÷ ... trace"). Prints a Markdown table.
 
 --run picks the run inside each process: the last (default, what the harness measures: a process
 warmed by its earlier runs, as a renderer's steady state) or the first (a cold process: page faults
@@ -21,51 +23,43 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 
+import common
+from common import contender_name, median, paired_ratio, ratio_to_embree, round_values
 
-def per_round(c, run="last"):
-    """(prepare + trace, trace) per measured round of a contender, of the process's last or first
-    run."""
-    k = -1 if run == "last" else 0
+
+def rows(results, threads, min_tris, run="last", tracer="dacrt", baseline="bvh"):
+    """One row per scene of the Fig. 14 table. Every ratio is common.paired_ratio's (median over the
+    rounds both sides ran of the per-round ratio); every ratio to Embree is common.ratio_to_embree's
+    (the fastest Embree configuration of each round)."""
     out = []
-    for r in c.get("runs", []):
-        pre = r.get("prepare_ms_runs") or [r["prepare_ms"]]
-        tr = r.get("trace_ms_runs") or [r["trace_ms"]]
-        out.append((pre[k] + tr[k], tr[k]))
-    return out
-
-
-def rows(results, threads, min_tris, run="last"):
-    out = []
+    d_name, b_name = contender_name(tracer, threads), contender_name(baseline, threads)
     for s in results["scenes"]:
         w = s.get("workloads", {}).get("camera")
         if not w or s["triangles"] < min_tris:
             continue
         cs = w["contenders"]
-        d = per_round(cs.get(f"dacrt-{threads}t", {}), run)
-        b = per_round(cs.get(f"bvh-{threads}t", {}), run)
-        es = [per_round(cs.get(f"embree-{q}-{threads}t", {}), run) for q in ("low", "medium")]
-        es = [e for e in es if e]
-        n = min([len(d), len(b)] + [len(e) for e in es])
-        if n == 0:
+        d, b = cs.get(d_name, {}), cs.get(b_name, {})
+        d_frame, d_trace = round_values(d, "frame", run), round_values(d, "trace", run)
+        b_frame, b_trace = round_values(b, "frame", run), round_values(b, "trace", run)
+        ratios = dict(
+            r_bvh_frame=paired_ratio(d_frame, b_frame),
+            r_bvh_trace=paired_ratio(d_frame, b_trace),  # DACRT's whole frame vs the BVH's trace alone
+            r_embree_frame=ratio_to_embree(cs, d_name, "frame", run),
+            r_embree_trace=ratio_to_embree(cs, d_name, "frame", run, embree_metric="trace"),  # the same
+        )
+        if any(r is None for r in ratios.values()):
             continue
-        # Embree at its best in each round: the faster configuration for the frame, and for trace.
-        e_frame = [min(e[k][0] for e in es) for k in range(n)]
-        e_trace = [min(e[k][1] for e in es) for k in range(n)]
-        med = statistics.median
         out.append(dict(
             scene=s["name"], triangles=s["triangles"], rays=w["rays"], hit=w.get("hit_fraction"),
-            dacrt=med(x[0] for x in d[:n]), dacrt_trace=med(x[1] for x in d[:n]),
-            dacrt_prepare=med(x[0] - x[1] for x in d[:n]),
-            bvh_frame=med(x[0] for x in b[:n]), bvh_trace=med(x[1] for x in b[:n]),
-            embree_frame=med(e_frame), embree_trace=med(e_trace),
-            r_bvh_frame=med(d[k][0] / b[k][0] for k in range(n)),
-            r_bvh_trace=med(d[k][0] / b[k][1] for k in range(n)),
-            r_embree_frame=med(d[k][0] / e_frame[k] for k in range(n)),
-            r_embree_trace=med(d[k][0] / e_trace[k] for k in range(n)),
-            rounds=n,
+            dacrt=median(d_frame.values()), dacrt_trace=median(d_trace.values()),
+            dacrt_prepare=median(round_values(d, "prepare", run).values()),
+            bvh_frame=median(b_frame.values()), bvh_trace=median(b_trace.values()),
+            embree_frame=common.embree_best_ms(cs, threads, "frame", run),
+            embree_trace=common.embree_best_ms(cs, threads, "trace", run),
+            rounds=min(r["rounds"] for r in ratios.values()),
+            **{k: r["median"] for k, r in ratios.items()},
         ))
     return out
 
@@ -85,10 +79,10 @@ def main(argv=None):
     if not table:
         print("no scene with a camera workload and both dacrt and bvh runs", file=sys.stderr)
         return 1
-    print(f"| scene | triangles | hit frac. | DACRT frame ms (prepare + trace) | BVH build + trace ms | "
-          f"BVH trace ms | Embree best build + trace ms | Embree trace ms | DACRT ÷ BVH frame "
-          f"(target ≤ 0.5) | DACRT ÷ BVH trace (≤ 1.5) | DACRT ÷ Embree frame (≤ 0.5) | "
-          f"DACRT ÷ Embree trace (stretch ≤ 1.4) | rounds |")
+    print("| scene | triangles | hit frac. | DACRT frame ms (prepare + trace) | BVH build + trace ms | "
+          "BVH trace ms | Embree best build + trace ms | Embree trace ms | DACRT ÷ BVH frame "
+          "(target ≤ 0.5) | DACRT frame ÷ BVH trace (≤ 1.5) | DACRT ÷ Embree frame (≤ 0.5) | "
+          "DACRT frame ÷ Embree trace (stretch ≤ 1.4) | rounds |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in table:
         print(f"| {r['scene']} | {r['triangles']:,} | {r['hit']:.2f} | {r['dacrt']:,.0f} "

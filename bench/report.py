@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import common
+
 WORKLOAD_TEXT = {
     "camera": "camera rays (Embree: 16-ray packets over 4×4 pixel tiles, rtcIntersect16)",
     "shadow": "shadow rays to a point light from the camera hits, any hit (Embree: 16-ray packets over the "
@@ -29,15 +31,6 @@ def _scene_label(s):
     return s["name"]
 
 
-def _order(names):
-    """Embree configs first, then raysift tracers; by threads."""
-    def key(n):
-        emb = n.startswith("embree")
-        t = int(n.rsplit("-", 1)[1].rstrip("t")) if n.rsplit("-", 1)[-1].endswith("t") else 0
-        return (not emb, n.rsplit("-", 1)[0], t)
-    return sorted(names, key=key)
-
-
 def plots(res, plot_dir: Path, stem: str):
     import matplotlib
     matplotlib.use("Agg")
@@ -48,7 +41,7 @@ def plots(res, plot_dir: Path, stem: str):
     workloads = [w for w in ("camera", "shadow", "bounce", "random")
                  if any(w in s["workloads"] for s in scenes)]
     tmax = max(res["meta"]["threads"])
-    names = _order({n for s in scenes for w in s["workloads"].values() for n, c in w["contenders"].items()
+    names = common.order_names({n for s in scenes for w in s["workloads"].values() for n, c in w["contenders"].items()
                     if c["threads"] == tmax and c.get("summary")})
     cmap = plt.get_cmap("tab10")
     colors = {n: cmap(i % 10) for i, n in enumerate(names)}
@@ -89,7 +82,7 @@ def plots(res, plot_dir: Path, stem: str):
 
     # cost versus triangle count, camera rays, log-log
     if "camera" in workloads:
-        allnames = _order({n for s in scenes for n, c in s["workloads"].get("camera", {}).get("contenders", {}).items()
+        allnames = common.order_names({n for s in scenes for n, c in s["workloads"].get("camera", {}).get("contenders", {}).items()
                            if c.get("summary")})
         fig, axes = plt.subplots(1, 3, figsize=(19, 5.5))
         for metric, ax, lab in (("trace_ms", axes[0], "trace ms"), ("prepare_ms", axes[1], "prepare (build) ms"),
@@ -121,10 +114,14 @@ def plots(res, plot_dir: Path, stem: str):
 
 
 def write_report(res, results_path: Path, md_path: Path):
-    bench = Path(__file__).resolve().parent
-    root = bench.parent
+    root = common.ROOT
     stem = results_path.stem
     m = res["meta"]
+    # the ratios from the runs, by the one definition (common.ratio_to_embree), whatever the
+    # results file stored (files older than the shared module used another rule: bench/README.md)
+    for s in res["scenes"]:
+        for w in s["workloads"].values():
+            common.add_ratios(w["contenders"])
     if not m.get("embree_version"):  # partial results: take it from a peer's own JSON
         m["embree_version"] = next((c["json"].get("embree_version") for s in res["scenes"]
                                     for w in s["workloads"].values() for c in w["contenders"].values()
@@ -171,8 +168,8 @@ def write_report(res, results_path: Path, md_path: Path):
              "thread pools warm, the structure rebuilt from scratch); times are medians over rounds with "
              "[min–max] spread, read from each tool's own JSON (process start-up and file loading excluded).")
     L.append("* *Dynamic frame* = prepare (build) + trace, as for a scene that changes every frame. "
-             "*Ratio* = raysift ÷ best Embree config at the same thread count, median of per-round ratios "
-             "(> 1: raysift is slower). Peak RSS is the whole process (scene, rays, hits, structure). "
+             "*Ratio* = raysift ÷ the fastest Embree configuration of the same round at the same thread count, "
+             "median over rounds (> 1: raysift is slower; bench/README.md, \"Ratio to Embree\"). Peak RSS is the whole process (scene, rays, hits, structure). "
              "Bytes/triangle: raysift's own report of its structure; for Embree, the resident-memory growth "
              "across the build (an estimate).")
     if any(c.get("slow") for s in res["scenes"] for w in s["workloads"].values() for c in w["contenders"].values()):
@@ -197,13 +194,13 @@ def write_report(res, results_path: Path, md_path: Path):
 
     scenes = sorted(res["scenes"], key=lambda s: s["triangles"])
     # summary: raysift vs Embree ratios
-    rs_names = _order({n for s in scenes for w in s["workloads"].values() for n, c in w["contenders"].items()
+    rs_names = common.order_names({n for s in scenes for w in s["workloads"].values() for n, c in w["contenders"].items()
                        if c["kind"] == "raysift" and c.get("ratio_trace")})
     if rs_names:
         L.append("### Summary: raysift ÷ best Embree (trace only / dynamic frame)")
         L.append("")
         L.append("Each cell: trace-time ratio / dynamic-frame ratio against the fastest Embree configuration "
-                 "(LOW or MEDIUM) at the same thread count; below 1 means raysift is faster.")
+                 "(LOW or MEDIUM) of each round at the same thread count; below 1 means raysift is faster.")
         L.append("")
         L.append("| scene | triangles | workload | hit (occluded) frac. | " + " | ".join(rs_names) + " |")
         L.append("|---|---:|---|---:|" + "---:|" * len(rs_names))
@@ -232,7 +229,7 @@ def write_report(res, results_path: Path, md_path: Path):
                  "dynamic ms | trace ratio | dynamic ratio | peak RSS MB | bytes/tri | agrees |")
         L.append("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
         for s, w in rows:
-            for n in _order(list(w["contenders"])):
+            for n in common.order_names(list(w["contenders"])):
                 c = w["contenders"][n]
                 a = w["agreement"].get(n)
                 agrees = "reference" if n == w.get("reference") else ("–" if a is None else ("yes" if a["ok"] else "**NO**"))

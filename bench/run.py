@@ -20,26 +20,20 @@ disagreement is printed loudly and fails the run.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
-import math
 import os
-import platform
-import re
-import shlex
 import shutil
-import subprocess
 import sys
-import tempfile
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
-BENCH = Path(__file__).resolve().parent
-ROOT = BENCH.parent
-MISS = np.uint32(0xFFFFFFFF)
+import common
+from common import BENCH, ProcError, fmt3, log, loud, run_proc, slug
+from report import write_report
+
+MISS = np.uint32(common.MISS)
 
 # Agreement tolerances (issue #3, point 5).
 T_REL_TOL = 1e-4  # t within 1e-4 relative
@@ -52,26 +46,13 @@ SLOW_RUN_S = 6.0  # a contender whose warm-up run (prepare + trace) takes longer
 SLOW_ROUNDS = 3  # ... is measured in this many rounds only (flagged in the report), to keep the
 # full run within its time budget on 2 cores
 LONG_RUN_MS = 200  # a run at least this long is measured once per process (warm-up hardly matters)
-FRAME_HIT_TARGET = 0.7  # camera framing: narrow the view until this fraction of a preview hits
 PROCEDURAL = ["sphere:100000", "soup:100000", "sphere:1000000", "soup:1000000"]
-SCENE_EXTS = (".ply", ".obj", ".off", ".gltf", ".glb")
-
-# Interiors need the camera inside; everything else is framed automatically (see frame_camera).
-CAMERA_OVERRIDES = {
-    "sponza.obj.gz": dict(eye=(-13.0, 2.5, 0.0), look=(10.0, 4.5, 0.0), up=(0, 1, 0), fov=60.0),
-    "sponza.obj": dict(eye=(-13.0, 2.5, 0.0), look=(10.0, 4.5, 0.0), up=(0, 1, 0), fov=60.0),
-}
-LIGHT_OVERRIDES = {
-    # inside the atrium, under the open roof
-    "sponza.obj.gz": (0.0, 12.0, 0.0),
-    "sponza.obj": (0.0, 12.0, 0.0),
-}
 
 MODES = {
-    # naive_budget: rays x triangles above which the brute-force tracer is skipped (it tests every
-    # triangle: ~5e7-1e8 tests/s per core here, so 1e8 is about a second per run)
-    "full": dict(width=1024, height=1024, random=1 << 19, rounds=5, threads=[1, 2], naive_budget=1e8, scenes=None),
-    "quick": dict(width=1024, height=1024, random=1 << 19, rounds=2, threads=[1, 2], naive_budget=1e8,
+    # naive_budget: rays x triangles above which a brute-force tracer is skipped (common.over_budget)
+    "full": dict(width=1024, height=1024, random=1 << 19, rounds=5, threads=[1, 2], naive_budget=common.NAIVE_BUDGET,
+                 scenes=None),
+    "quick": dict(width=1024, height=1024, random=1 << 19, rounds=2, threads=[1, 2], naive_budget=common.NAIVE_BUDGET,
                   scenes=["CornellBox-Original.obj", "bun_zipper.ply", "sphere:100000"]),
     "check": dict(width=128, height=128, random=1 << 14, rounds=0, threads=[2], naive_budget=float("inf"),
                   scenes=["bun_zipper_res2.ply"]),
@@ -79,248 +60,23 @@ MODES = {
 WORKLOADS = ["camera", "shadow", "bounce", "random"]
 
 
-def log(*a):
-    print(*a, flush=True)
-
-
-def loud(msg):
-    bar = "!" * 78
-    print(f"\n{bar}\n!! {msg}\n{bar}\n", flush=True, file=sys.stderr)
-
-
-# ------------------------------------------------------------------------------------------------
-# processes
-
-
-class ProcError(RuntimeError):
-    pass
-
-
-def run_proc(cmd, cpus=None, timeout=None, capture=True):
-    """Runs cmd (pinned to `cpus` when given) and returns (stdout, stderr, peak_rss_bytes, wall_s)."""
-    out_f = tempfile.TemporaryFile()
-    err_f = tempfile.TemporaryFile()
-
-    def pin():
-        if cpus:
-            os.sched_setaffinity(0, cpus)
-
-    t0 = time.perf_counter()
-    p = subprocess.Popen([str(c) for c in cmd], stdout=out_f, stderr=err_f, preexec_fn=pin, cwd=ROOT)
-    killer = None
-    if timeout:
-        killer = threading.Timer(timeout, p.kill)
-        killer.start()
-    _, status, ru = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    wall = time.perf_counter() - t0
-    if killer:
-        killer.cancel()
-    out_f.seek(0)
-    err_f.seek(0)
-    out = out_f.read().decode(errors="replace")
-    err = err_f.read().decode(errors="replace")
-    if p.returncode != 0:
-        what = "timed out" if p.returncode == -9 and timeout and wall >= timeout else f"exit {p.returncode}"
-        raise ProcError(f"{what}: {shlex.join(str(c) for c in cmd)}\n{err.strip()[-2000:]}")
-    return out, err, ru.ru_maxrss * 1024, wall
-
-
-def last_json(out):
-    for line in reversed(out.strip().splitlines()):
-        line = line.strip()
-        if line.startswith("{"):
-            return json.loads(line)
-    raise ValueError(f"no JSON object in output: {out[-500:]!r}")
-
-
-# ------------------------------------------------------------------------------------------------
-# set-up
-
-
-def build(args):
-    if args.no_build:
-        return
-    log("building raysift (cargo build --release -p raysift-cli) ...")
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "raysift-cli"], cwd=ROOT, check=True)
-    log("building embree-peer (cargo build --release --manifest-path bench/Cargo.toml) ...")
-    subprocess.run(["cargo", "build", "--release", "-q", "--manifest-path", str(BENCH / "Cargo.toml")],
-                   cwd=ROOT, check=True)
-
-
-def tool_paths(args):
-    raysift = Path(args.raysift) if args.raysift else ROOT / "target" / "release" / "raysift"
-    peer = Path(args.peer) if args.peer else BENCH / "target" / "release" / "embree-peer"
-    for p in (raysift, peer):
-        if not p.exists():
-            sys.exit(f"missing {p}: build it (see bench/README.md) or drop --no-build")
-    return raysift, peer
-
-
-def list_tracers(raysift):
-    out, _, _, _ = run_proc([raysift, "tracers"])
-    return [t.strip() for t in out.split() if t.strip()]
-
-
-def shared_dir(args):
-    if args.scenes_dir:
-        return Path(args.scenes_dir)
-    if os.environ.get("RAYSIFT_SCENES"):
-        return Path(os.environ["RAYSIFT_SCENES"])
-    return ROOT.parent / "shared" / "scenes"
-
-
 def scene_list(args, mode):
-    """Scene specs: files (absolute paths) or generator specs."""
-    sdir = shared_dir(args)
+    """Scene specs: --scenes, else the mode's, else every mesh of the scene folder + PROCEDURAL."""
+    sdir = common.scenes_dir(args.scenes_dir)
     if args.scenes:
-        wanted = [s.strip() for s in args.scenes.split(",") if s.strip()]
+        wanted = common.split_list(args.scenes)
     elif mode["scenes"] is not None:
         wanted = list(mode["scenes"])
     else:
-        if sdir.is_dir():
-            # smallest first (file size stands in for triangle count), so a cut-short run still
-            # covers most scenes
-            files = [p.name for p in sorted(sdir.iterdir(), key=lambda p: p.stat().st_size)
-                     if p.name.lower().removesuffix(".gz").endswith(SCENE_EXTS)]
-        else:
-            log(f"NOTE: {sdir} is absent: skipping the shared meshes, running procedural scenes only")
-            files = []
+        files = common.mesh_files(sdir)
+        if not files:
+            log(f"NOTE: {sdir} is absent or empty: skipping the shared meshes, running procedural scenes only")
         wanted = files + PROCEDURAL
-    specs = []
-    for w in wanted:
-        head = w.split(":", 1)[0]
-        if head in ("sphere", "soup", "cornell", "tile") and (":" in w or head == "cornell"):
-            specs.append(w)
-        elif Path(w).is_file():
-            specs.append(str(Path(w).resolve()))
-        elif (sdir / w).is_file():
-            specs.append(str((sdir / w).resolve()))
-        else:
-            fallback = {"bun_zipper.ply": "sphere:65536", "bun_zipper_res2.ply": "sphere:20000",
-                        "CornellBox-Original.obj": "cornell"}.get(w)
-            if fallback:
-                log(f"NOTE: {w} not found in {sdir}: using {fallback} instead")
-                specs.append(fallback)
-            else:
-                log(f"NOTE: scene {w} not found in {sdir}: skipped")
-    return specs
-
-
-def slug(spec):
-    if spec.startswith("tile:") and spec.count(":") >= 2:
-        _, k, f = spec.split(":", 2)
-        return f"tile{k}x{k}_" + slug(f)
-    name = Path(spec).name if "/" in spec else spec
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
-
-
-def cpu_model():
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def git_commit():
-    try:
-        c = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True).stdout.strip()
-        return c + ("+dirty" if dirty else "")
-    except OSError:
-        return "unknown"
+    return common.resolve_scenes(wanted, sdir)
 
 
 # ------------------------------------------------------------------------------------------------
-# cameras and workloads
-
-
-def camera_basis(eye, look, up):
-    f = np.asarray(look, float) - np.asarray(eye, float)
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
-    return r, u, f
-
-
-def numpy_camera_rays(eye, look, up, fov, w, h):
-    """The same pinhole convention as `raysift rays camera` (ordered j*W+i), for framing previews."""
-    r, u, f = camera_basis(eye, look, up)
-    tan = math.tan(math.radians(fov) / 2)
-    j, i = np.mgrid[0:h, 0:w]
-    x = (2 * (i + 0.5) / w - 1) * tan * w / h
-    y = (1 - 2 * (j + 0.5) / h) * tan
-    d = x[..., None] * r + y[..., None] * u + f
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    rays = np.zeros((w * h, 8), np.float32)
-    rays[:, 0:3] = eye
-    rays[:, 3:6] = d.reshape(-1, 3)
-    rays[:, 7] = np.inf
-    return rays
-
-
-def default_eye(lo, hi, aspect=1.0):
-    """raysift's default framing (Camera::framing at 45 degrees): from +z, bounds filling the view."""
-    c = (lo + hi) / 2
-    half = np.maximum((hi - lo) / 2, 1e-6)
-    tv = math.tan(math.radians(45.0) / 2)
-    th = tv * aspect
-    dist = half[2] + max(half[0] / th, half[1] / tv) * 1.02
-    return c + np.array([0.0, 0.0, dist]), c
-
-
-def hit_fraction(hits_path):
-    h = np.load(hits_path)
-    return float((h["prim"] != MISS).mean()) if len(h) else 0.0
-
-
-def frame_camera(ctx, sc, wdir):
-    """Chooses eye/look/fov so that most camera rays hit: keeps raysift's default eye and narrows the
-    field of view about the centre of the bounds until >= 70% of a 64x64 preview hits (Embree traces
-    the previews). A scene that covers 20% of the image would mostly measure misses."""
-    name = Path(sc["spec"]).name
-    lo, hi = np.array(sc["bounds"][0]), np.array(sc["bounds"][1])
-    if name in CAMERA_OVERRIDES:
-        o = CAMERA_OVERRIDES[name]
-        return dict(eye=list(o["eye"]), look=list(o["look"]), up=list(o["up"]), fov=o["fov"], how="preset")
-    eye, look = default_eye(lo, hi)
-    best = None
-    for fov in (45.0, 38.0, 32.0, 27.0, 23.0, 19.0, 16.0, 13.0, 11.0, 9.0):
-        rays = numpy_camera_rays(eye, look, (0, 1, 0), fov, 64, 64)
-        rp = wdir / "preview.npy"
-        hp = wdir / "preview_hits.npy"
-        np.save(rp, rays)
-        run_proc([ctx["peer"], "--tris", sc["tris"], "--rays", rp, "--out", hp, "--threads", "1"],
-                 cpus=ctx["cpus"][:1])
-        f = hit_fraction(hp)
-        if best is None or f > best[1] + 1e-9:
-            best = (fov, f)
-        if f >= FRAME_HIT_TARGET:
-            best = (fov, f)
-            break
-    return dict(eye=eye.tolist(), look=look.tolist(), up=[0.0, 1.0, 0.0], fov=best[0],
-                how=f"auto (preview hit fraction {best[1]:.3f})")
-
-
-def light_for(sc):
-    name = Path(sc["spec"]).name
-    if name in LIGHT_OVERRIDES:
-        return list(LIGHT_OVERRIDES[name])
-    lo, hi = np.array(sc["bounds"][0]), np.array(sc["bounds"][1])
-    c, ext = (lo + hi) / 2, np.maximum(hi - lo, 1e-6)
-    # above, to the right and in front (the camera side): most visible surfaces face it, and the
-    # scene's own relief casts shadows
-    return (c + ext * np.array([0.6, 1.5, 1.2])).tolist()
-
-
-def fmt3(v):
-    return ",".join(f"{x:.9g}" for x in v)
-
+# workloads
 
 def prepare_scene(ctx, spec):
     mode = ctx["mode"]
@@ -338,25 +94,24 @@ def prepare_scene(ctx, spec):
     sc["size"] = float(np.abs(np.array(sc["bounds"])).max() + np.ptp(np.array(sc["bounds"]), axis=0).max())
     del v, tris
     try:
-        info = last_json(run_proc([rs, "info", spec, "--json"])[0])
+        info = common.run_json([rs, "info", spec, "--json"])[0]
         sc["vertices"] = info.get("vertices")
         sc["scene_bytes"] = info.get("bytes")
     except (ProcError, ValueError) as e:
         log(f"  (raysift info failed: {e})")
-    cam = frame_camera(ctx, sc, wdir)
+    cam = common.frame_camera(spec, sc["bounds"], ctx["peer"], sc["tris"], wdir, ctx["cpus"])
     sc["camera"] = cam
     W, H = mode["width"], mode["height"]
     wl = {}
     cam_rays = wdir / "camera.npy"
-    run_proc([rs, "rays", "camera", spec, "--width", W, "--height", H, "--eye", fmt3(cam["eye"]),
-              "--look", fmt3(cam["look"]), "--up", fmt3(cam["up"]), "--fov", cam["fov"], "--out", cam_rays])
+    run_proc([rs, "rays", "camera", spec, "--width", W, "--height", H, *common.camera_args(cam), "--out", cam_rays])
     # Camera hits (for the secondary rays) from Embree; the agreement check later compares every
     # tracer with Embree on these very rays.
     cam_hits = wdir / "camera_hits.npy"
     run_proc([ctx["peer"], "--tris", sc["tris"], "--rays", cam_rays, "--out", cam_hits, "--threads",
               len(ctx["cpus"]), "--packet", "16", "--tile", f"{W},{H}"], cpus=ctx["cpus"])
     wl["camera"] = dict(rays=str(cam_rays), occlusion=False, packet=16, tile=(W, H))
-    light = light_for(sc)
+    light = common.light_for(spec, sc["bounds"])
     sc["light"] = light
     sh, shm = wdir / "shadow.npy", wdir / "shadow_map.npy"
     run_proc([rs, "rays", "shadow", spec, "--rays", cam_rays, "--hits", cam_hits, "--light", fmt3(light),
@@ -372,7 +127,7 @@ def prepare_scene(ctx, spec):
         # rows, or pixels of image-shaped camera rays (H, W, 8)
         w["count"] = int(np.prod(np.load(w["rays"], mmap_mode="r").shape[:-1]))
     sc["workloads"] = wl
-    sc["camera"]["hit_fraction"] = hit_fraction(cam_hits)
+    sc["camera"]["hit_fraction"] = common.hit_fraction(cam_hits)
     sc["setup_s"] = time.perf_counter() - t0
     return sc, wdir
 
@@ -385,19 +140,18 @@ def contenders_for(ctx, sc, wname, w):
     """Embree configs first (the first is the agreement reference), then raysift's tracers."""
     cs = []
     for n in ctx["threads"]:
-        for q in ("medium", "low"):
-            cs.append(dict(name=f"embree-{q}-{n}t", kind="embree", quality=q, threads=n))
-    cs.sort(key=lambda c: (c["threads"] != min(ctx["threads"]), c["quality"] != "medium"))
+        for q in common.EMBREE_QUALITIES:
+            cs.append(dict(name=common.embree_name(q, n), kind="embree", quality=q, threads=n))
+    cs.sort(key=lambda c: (c["threads"] != min(ctx["threads"]), common.EMBREE_QUALITIES.index(c["quality"])))
+    budget = ctx["mode"]["naive_budget"]
     for t in ctx["tracers"]:
-        if t == "naive":
-            cost = float(w["count"]) * sc["triangles"]
-            if cost > ctx["mode"]["naive_budget"]:
-                if wname == "camera":
-                    log(f"  naive skipped on {sc['name']}: {w['count']} rays x {sc['triangles']} triangles "
-                        f"= {cost:.2g} ray-triangle tests > budget {ctx['mode']['naive_budget']:.2g}")
-                continue
+        if common.over_budget(t, w["count"], sc["triangles"], budget):
+            if wname == "camera":
+                log(f"  {t} skipped on {sc['name']}: {w['count']} rays x {sc['triangles']} triangles "
+                    f"= {float(w['count']) * sc['triangles']:.2g} ray-triangle tests > budget {budget:.2g}")
+            continue
         for n in ctx["threads"]:
-            cs.append(dict(name=f"{t}-{n}t", kind="raysift", tracer=t, threads=n))
+            cs.append(dict(name=common.contender_name(t, n), kind="raysift", tracer=t, threads=n))
     return cs
 
 
@@ -424,14 +178,13 @@ def run_contender(ctx, sc, w, c, out=None, inproc=None):
     ones warm the process: page faults, allocator, thread pools), as in a renderer's steady state."""
     cpus = ctx["cpus"][: c["threads"]]
     cmd = command(ctx, sc, w, c, out) + ["--repeat", inproc or ctx["inproc"]]
-    o, _, rss, wall = run_proc(cmd, cpus=cpus, timeout=ctx["timeout"])
-    j = last_json(o)
-    pre = j.get("prepare_ms_runs") or [j["prepare_ms"]]
-    tr = j.get("trace_ms_runs") or [j["trace_ms"]]
-    return dict(prepare_ms=float(pre[-1]), trace_ms=float(tr[-1]), hits=int(j["hits"]),
-                prepare_ms_runs=pre, trace_ms_runs=tr,
-                peak_rss_bytes=int(rss), wall_s=wall, bytes_per_triangle=j.get("bytes_per_triangle"),
-                raw=j)
+    j, rss, wall = common.run_json(cmd, cpus=cpus, timeout=ctx["timeout"])
+    r = common.report_times(j)
+    r.update(peak_rss_bytes=int(rss), wall_s=wall, bytes_per_triangle=j.get("bytes_per_triangle"), raw=j)
+    work = common.work_counters(j)
+    if work:
+        r["work"] = work
+    return r
 
 
 # ------------------------------------------------------------------------------------------------
@@ -542,42 +295,17 @@ def describe_agreement(r):
 # the run
 
 
-def median(x):
-    return float(np.median(x)) if len(x) else float("nan")
-
-
 def summarize(runs):
     pre = [r["prepare_ms"] for r in runs]
     tr = [r["trace_ms"] for r in runs]
     dyn = [p + t for p, t in zip(pre, tr)]
 
     def st(x):
-        return dict(median=median(x), min=float(min(x)), max=float(max(x)),
+        return dict(median=common.median(x), min=float(min(x)), max=float(max(x)),
                     q1=float(np.percentile(x, 25)), q3=float(np.percentile(x, 75)))
     return dict(prepare_ms=st(pre), trace_ms=st(tr), dynamic_ms=st(dyn),
-                peak_rss_bytes=int(median([r["peak_rss_bytes"] for r in runs])),
+                peak_rss_bytes=int(common.median(r["peak_rss_bytes"] for r in runs)),
                 bytes_per_triangle=runs[-1].get("bytes_per_triangle"))
-
-
-def add_ratios(wres, threads):
-    """Per-round paired ratios of each raysift contender to the best Embree config at the same thread
-    count (best by median trace time for the trace ratio, by median dynamic frame for the other)."""
-    cons = wres["contenders"]
-    for n in threads:
-        emb = {k: v for k, v in cons.items() if v["kind"] == "embree" and v["threads"] == n and v.get("runs")}
-        if not emb:
-            continue
-        best_tr = min(emb, key=lambda k: emb[k]["summary"]["trace_ms"]["median"])
-        best_dyn = min(emb, key=lambda k: emb[k]["summary"]["dynamic_ms"]["median"])
-        for k, v in cons.items():
-            if v["threads"] != n or not v.get("runs"):
-                continue
-            rt, rd = [], []
-            for r, e1, e2 in zip(v["runs"], emb[best_tr]["runs"], emb[best_dyn]["runs"]):
-                rt.append(r["trace_ms"] / max(e1["trace_ms"], 1e-9))
-                rd.append((r["prepare_ms"] + r["trace_ms"]) / max(e2["prepare_ms"] + e2["trace_ms"], 1e-9))
-            v["ratio_trace"] = dict(vs=best_tr, median=median(rt), min=float(min(rt)), max=float(max(rt)))
-            v["ratio_dynamic"] = dict(vs=best_dyn, median=median(rd), min=float(min(rd)), max=float(max(rd)))
 
 
 def bench_scene(ctx, spec, results):
@@ -629,7 +357,7 @@ def bench_scene(ctx, spec, results):
                     # Runs of a second or more hardly feel process warm-up: one run per process
                     # there (saves time on big scenes); naive has no structure to build.
                     long_run = r["prepare_ms"] + r["trace_ms"] > ctx["long_run_ms"]
-                    c["inproc"] = 1 if long_run or c.get("tracer") == "naive" else ctx["inproc"]
+                    c["inproc"] = 1 if long_run or c.get("tracer") in common.BRUTE_FORCE else ctx["inproc"]
                     cres["inproc"] = c["inproc"]
                     if (r["prepare_ms"] + r["trace_ms"]) / 1e3 > ctx["slow_s"] and ctx["rounds"] > SLOW_ROUNDS:
                         c["max_rounds"] = SLOW_ROUNDS
@@ -662,11 +390,11 @@ def bench_scene(ctx, spec, results):
                         log(f"  note: {c['name']} vs {ref_name} on {wname}: {describe_agreement(a)}; "
                             f"rays: {[e['ray'] if isinstance(e, dict) else e for e in a.get('examples', [])]}")
                 else:
-                    cres["runs"].append({k: v for k, v in r.items() if k != "raw"})
+                    cres["runs"].append(dict({k: v for k, v in r.items() if k not in ("raw", "work")}, round=rnd))
         for name, cres in wres["contenders"].items():
             if cres["runs"]:
                 cres["summary"] = summarize(cres["runs"])
-        add_ratios(wres, ctx["threads"])
+        common.add_ratios(wres["contenders"])
         line = [f"  {wname:7s} {w['count']:>8d} rays, hit/occluded fraction {wres.get('hit_fraction', float('nan')):.3f}:"]
         for name, cres in wres["contenders"].items():
             s = cres.get("summary")
@@ -675,7 +403,7 @@ def bench_scene(ctx, spec, results):
                 line.append(f"    {name:18s} prepare {s['prepare_ms']['median']:9.2f} ms  trace "
                             f"{s['trace_ms']['median']:9.2f} ms [{s['trace_ms']['min']:.1f}-{s['trace_ms']['max']:.1f}]"
                             f"  {w['count'] / s['trace_ms']['median'] / 1e3:8.2f} Mrays/s"
-                            + (f"  trace x{rt['median']:.2f} vs {rt['vs']}" if rt and cres["kind"] != "embree" else ""))
+                            + (f"  trace x{rt['median']:.2f} vs Embree's best per round" if rt and cres["kind"] != "embree" else ""))
             elif ctx["rounds"] == 0 and cres.get("warmup"):
                 a = wres["agreement"].get(name)
                 line.append(f"    {name:18s} {'reference' if a is None else ('agrees' if a['ok'] else 'DISAGREES')}"
@@ -688,25 +416,14 @@ def bench_scene(ctx, spec, results):
         shutil.rmtree(wdir, ignore_errors=True)
 
 
-def versions():
-    v = dict(python=platform.python_version(), numpy=np.__version__)
-    try:
-        from importlib.metadata import version
-        v["embreex"] = version("embreex")
-        v["matplotlib"] = version("matplotlib")
-    except Exception:  # noqa: BLE001
-        pass
-    return v
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--quick", action="store_true", help="two scenes, fewer rounds (< 5 minutes once built)")
     g.add_argument("--check", action="store_true", help="agreement only on one small scene; exit 1 on disagreement")
     g.add_argument("--report", metavar="RESULTS.json", help="only regenerate BENCHMARKS.generated.md and plots")
-    ap.add_argument("--scenes", help="comma-separated scene files (names in the shared folder or paths) or generators")
-    ap.add_argument("--scenes-dir", help="folder of shared meshes (default ../shared/scenes, or $RAYSIFT_SCENES)")
+    common.add_scene_args(ap, "every mesh of the scene folder + sphere/soup at 100K and 1M (--quick, --check: "
+                          "their own)")
     ap.add_argument("--workloads", default=",".join(WORKLOADS), help="subset of camera,shadow,bounce,random")
     ap.add_argument("--tracers", help="raysift tracers to run (default: all that `raysift tracers` lists)")
     ap.add_argument("--threads", help="thread counts, e.g. 1,2 (default: mode's)")
@@ -732,8 +449,6 @@ def main(argv=None):
 
     if args.report:
         res = json.loads(Path(args.report).read_text())
-        sys.path.insert(0, str(BENCH))
-        from report import write_report  # noqa: E402  (bench/report.py)
         write_report(res, Path(args.report), Path(args.md or BENCH / "BENCHMARKS.generated.md"))
         return 0
 
@@ -742,19 +457,14 @@ def main(argv=None):
     if args.rounds is not None:
         mode["rounds"] = args.rounds
     started = time.perf_counter()
-    build(args)
-    raysift, peer = tool_paths(args)
+    if not args.no_build:
+        common.build()
+    raysift = common.tool_path(args.raysift, common.RAYSIFT_BIN)
+    peer = common.tool_path(args.peer, common.PEER_BIN)
     all_cpus = sorted(os.sched_getaffinity(0))
     threads = [int(x) for x in args.threads.split(",")] if args.threads else list(mode["threads"])
     threads = [t for t in threads if t <= len(all_cpus)] or [len(all_cpus)]
-    available = list_tracers(raysift)
-    if args.tracers is None:
-        tracers = available
-    else:  # "--tracers=" runs Embree alone
-        tracers = [t for t in args.tracers.split(",") if t]
-        unknown = [t for t in tracers if t not in available]
-        if unknown:
-            sys.exit(f"unknown tracer(s) {unknown}; `raysift tracers` lists {available}")
+    tracers = common.choose_tracers(common.list_tracers(raysift), args.tracers)  # "--tracers=": Embree alone
     ctx = dict(mode=mode, raysift=raysift, peer=peer, cpus=all_cpus, threads=threads, tracers=tracers,
                rounds=mode["rounds"], timeout=args.timeout,
                slow_s=args.slow if args.slow > 0 else float("inf"),
@@ -762,29 +472,25 @@ def main(argv=None):
                workloads=[w for w in args.workloads.split(",") if w in WORKLOADS],
                work=Path(args.work) if args.work else BENCH / "work" / mode_name)
     ctx["work"].mkdir(parents=True, exist_ok=True)
-    now = dt.datetime.now(dt.timezone.utc)
+    meta, now = common.run_meta("run.py", argv, raysift)
+    meta.update(mode=mode_name, cpus_used=all_cpus, threads=threads, rounds=mode["rounds"], warmup_rounds=1,
+                slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"],
+                long_run_ms=ctx["long_run_ms"], camera=[mode["width"], mode["height"]], random_rays=mode["random"],
+                naive_budget=mode["naive_budget"], raysift_tracers=tracers, ratio=common.RATIO_DEFINITION,
+                tolerances=dict(t_rel=T_REL_TOL, t_abs_pos=T_ABS_POS, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC,
+                                graze_min=GRAZE_MIN))
     results = dict(
-        meta=dict(date=now.strftime("%Y-%m-%d %H:%M UTC"), mode=mode_name,
-                  command="python3 bench/run.py " + shlex.join(sys.argv[1:] if argv is None else argv),
-                  cpu_model=cpu_model(), logical_cpus=os.cpu_count(), cpus_used=all_cpus, threads=threads,
-                  rounds=mode["rounds"], warmup_rounds=1, slow_run_s=ctx["slow_s"], slow_rounds=SLOW_ROUNDS, inproc_runs=ctx["inproc"], long_run_ms=ctx["long_run_ms"], camera=[mode["width"], mode["height"]],
-                  random_rays=mode["random"], naive_budget=mode["naive_budget"], raysift_commit=git_commit(),
-                  raysift_tracers=tracers, raysift_binary=str(raysift),
-                  raysift_version=run_proc([raysift, "--version"])[0].strip(), kernel=platform.release(), versions=versions(),
-                  tolerances=dict(t_rel=T_REL_TOL, t_abs_pos=T_ABS_POS, uv_abs=UV_ABS_TOL, graze_frac=GRAZE_FRAC, graze_min=GRAZE_MIN),
-                  load=os.getloadavg()),
+        meta=meta,
         scenes=[], disagreements=[], failures=[])
     specs = scene_list(args, mode)
     log(f"mode {mode_name}: {len(specs)} scenes, tracers {tracers}, threads {threads}, rounds {mode['rounds']} "
         f"(+1 warm-up), cpus {all_cpus}, load average {os.getloadavg()[0]:.2f}")
-    out = Path(args.out) if args.out else BENCH / "results" / (
-        now.strftime("%Y-%m-%d") + ("-quick" if mode_name == "quick" else "") + ".json")
+    out = Path(args.out) if args.out else common.results_path(now, "quick" if mode_name == "quick" else "")
     for k, spec in enumerate(specs):
         bench_scene(ctx, spec, results)
         if mode_name != "check":  # partial results survive an interrupted run
-            out.parent.mkdir(parents=True, exist_ok=True)
             results["meta"]["partial"] = f"{k + 1} of {len(specs)} scenes"
-            out.write_text(json.dumps(results, indent=1))
+            common.write_json(out, results)
         log(f"  [{k + 1}/{len(specs)} scenes, {(time.perf_counter() - started) / 60:.1f} min elapsed, "
             f"load average {os.getloadavg()[0]:.2f}]")
     results["meta"]["elapsed_s"] = time.perf_counter() - started
@@ -800,11 +506,8 @@ def main(argv=None):
     ok = not results["disagreements"] and not results["failures"]
     if mode_name != "check":
         results["meta"].pop("partial", None)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(results, indent=1))
+        common.write_json(out, results)
         log(f"\nwrote {out}")
-        sys.path.insert(0, str(BENCH))
-        from report import write_report  # noqa: E402
         md = args.md or BENCH / ("BENCHMARKS.quick.generated.md" if args.quick else "BENCHMARKS.generated.md")
         write_report(results, out, Path(md))
     n_checks = sum(len(w["agreement"]) for s in results["scenes"] for w in s["workloads"].values())
