@@ -7,75 +7,16 @@
 
 pub mod camera;
 pub mod generate;
+mod layout;
 pub mod npy;
 
 use glam::Vec3;
 
 pub use camera::Camera;
+pub use layout::RayLayout;
 
 /// Primitive id of a miss.
 pub const MISS: u32 = u32::MAX;
-
-/// How a batch was generated: a hint tracers may exploit, never a promise they rely on for
-/// correctness.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub enum RayLayout {
-    /// Nothing known.
-    #[default]
-    Unknown,
-    /// Pinhole camera rays from `eye`, ordered `j·width + i`.
-    Pinhole {
-        /// Common origin.
-        eye: Vec3,
-        /// Image width in pixels.
-        width: u32,
-        /// Image height in pixels.
-        height: u32,
-    },
-    /// Rays from surface points towards one point (shadow rays to a point light), each ending at
-    /// `t = 1` on that point.
-    ToPoint {
-        /// The common end point.
-        target: Vec3,
-    },
-}
-
-impl RayBatch {
-    /// Recovers a layout hint from the rays themselves (for batches read from files, which carry
-    /// no hint): `image` = `(width, height)` when the batch came as an image-shaped array.
-    ///
-    /// - `Pinhole`: an image-shaped batch whose rays all start at one point with `tmin >= 0`.
-    /// - `ToPoint`: every ray is a segment (`0 <= tmin`, `tmax <= 1`) whose end `o + d` is one
-    ///   point up to f32 rounding (relative `2^-16`), as [`generate::shadow_rays`] makes them.
-    ///
-    /// A hint only: tracers validate what they exploit (DACRT's cones check every ray), so a
-    /// wrong guess can cost speed but never change an answer. One pass over the batch.
-    pub fn detect_layout(&self, image: Option<(u32, u32)>) -> RayLayout {
-        let n = self.len();
-        if n == 0 {
-            return RayLayout::Unknown;
-        }
-        if let Some((width, height)) = image {
-            let eye = self.origin(0);
-            let shared = (0..n).all(|i| self.origin(i) == eye && self.tmin[i] >= 0.0);
-            if shared && width as usize * height as usize == n {
-                return RayLayout::Pinhole { eye, width, height };
-            }
-        }
-        let target = self.origin(0) + self.dir(0);
-        let ends_at_target = |i: usize| {
-            let (o, d) = (self.origin(i), self.dir(i));
-            let scale = o.abs().max(d.abs()).max(target.abs()).max_element();
-            self.tmin[i] >= 0.0
-                && self.tmax[i] <= 1.0
-                && ((o + d) - target).abs().max_element() <= scale * (1.0 / 65536.0)
-        };
-        if target.is_finite() && (0..n).all(ends_at_target) {
-            return RayLayout::ToPoint { target };
-        }
-        RayLayout::Unknown
-    }
-}
 
 /// One ray (for convenience outside hot loops).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -320,10 +320,10 @@ mod tests {
         let back = read_rays(&p).unwrap();
         assert_eq!(back.layout, rays.layout);
         assert_eq!(back.dx, rays.dx);
-        // Same rays as a flat (N, 8) array: no image size, no pinhole claim.
+        // Same rays as a flat (N, 8) array: recognised from the rays alone.
         let mut flat = rays.clone();
         flat.layout = RayLayout::Unknown;
-        assert_eq!(flat.detect_layout(None), RayLayout::Unknown);
+        assert_eq!(flat.detect_layout(None), rays.layout);
         // One ray from elsewhere: not a pinhole batch.
         let mut moved = rays.clone();
         moved.ox[100] += 1e-3;
