@@ -8,10 +8,13 @@
 //! the scalar test become one lane mask from vector comparisons; the arithmetic of rejected lanes
 //! (divisions by zero, NaNs) is computed and ignored. Written on glam's `Vec4` (SSE2 on x86-64,
 //! scalar elsewhere), without `unsafe`: the earlier `[f32; 4]` form vectorised the arithmetic but
-//! compiled the seven accept tests to 28 scalar compares.
+//! compiled the seven accept tests to 28 scalar compares. The scalar test's last step, the box
+//! gate ([`in_box_at`]), runs per accepted lane on the lane's own corners' box (stored when the
+//! lane is set), so it too is the scalar computation: candidates are rare, the gate cheap.
 //!
 //! [`intersect_triangle`]: super::intersect_triangle
 
+use super::triangle::in_box_at;
 use glam::{Vec3, Vec4};
 
 /// Four triangles, per axis and lane (`v0[axis]` holds the four lanes' first corners' `axis`
@@ -25,6 +28,8 @@ pub struct Tri4 {
     pub e1: [Vec4; 3],
     /// `v2 − v0`.
     pub e2: [Vec4; 3],
+    /// Each lane's corners, for the box gate.
+    pub corners: [[Vec3; 3]; 4],
 }
 
 impl Tri4 {
@@ -37,6 +42,7 @@ impl Tri4 {
             self.e1[k][l] = e1[k];
             self.e2[k][l] = e2[k];
         }
+        self.corners[l] = [a, b, c];
     }
 }
 
@@ -89,7 +95,17 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let q = cross(s, e1);
     let v = dot(d, q) * inv_det;
     let t = dot(e2, q) * inv_det;
-    accept(det, u, v, t, tmin, Vec4::splat(tmax))
+    let mut h = accept(det, u, v, t, tmin, Vec4::splat(tmax));
+    let mut m = h.mask;
+    while m != 0 {
+        let l = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let [a, b, c] = tri.corners[l];
+        if !in_box_at(origin, dir, a, b, c, h.t[l]) {
+            h.mask &= !(1 << l);
+        }
+    }
+    h
 }
 
 /// The scalar test's accept conditions, in its order, lane-wise; a NaN fails every comparison
@@ -119,6 +135,8 @@ fn accept(det: L, u: L, v: L, t: L, tmin: f32, tmax: L) -> Hit4 {
 /// scalar test on each (the per-ray rest is the scalar order, lane-wise).
 #[derive(Clone, Copy, Debug)]
 pub struct TriFromOrigin {
+    origin: Vec3,
+    corners: [Vec3; 3],
     e1: [Vec4; 3],
     e2: [Vec4; 3],
     s: [Vec4; 3],
@@ -134,6 +152,8 @@ impl TriFromOrigin {
         let q = s.cross(e1);
         let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
+            origin,
+            corners: [v0, v1, v2],
             e1: splat(e1),
             e2: splat(e2),
             s: splat(s),
@@ -152,7 +172,18 @@ impl TriFromOrigin {
         let u = dot(self.s, p) * inv_det;
         let v = dot(d, self.q) * inv_det;
         let t = self.tq * inv_det;
-        accept(det, u, v, t, tmin, tmax)
+        let mut h = accept(det, u, v, t, tmin, tmax);
+        let mut m = h.mask;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
+            let [a, b, c] = self.corners;
+            if !in_box_at(self.origin, dir, a, b, c, h.t[l]) {
+                h.mask &= !(1 << l);
+            }
+        }
+        h
     }
 }
 

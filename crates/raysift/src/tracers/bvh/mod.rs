@@ -316,32 +316,33 @@ impl Tracer for BvhTracer {
 
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
         let soup = scene.triangles();
-        let kept = matches!(scene.changes_since(self.stamp), Change::Meshes { .. });
+        let change = scene.changes_since(self.stamp);
         let mut built = Built::default();
-        let refit = kept
-            && match self.cfg.update {
-                Update::Rebuild => false,
-                Update::Refit => true,
-                Update::Auto => {
-                    let mut trial = self.bvh.tree.clone();
-                    trial.refit(soup);
-                    trial.sah_cost() <= self.cfg.rebuild_ratio as f64 * self.built_sah
-                }
-            };
-        if scene.changes_since(self.stamp) == Change::None {
+        if change == Change::None {
             // Nothing moved: the tree stands.
-        } else if refit {
-            self.stamp = Stamp::default();
-            built.refitted = self.bvh.tree.refit(soup) as u64;
-            self.bvh.copy_triangles(soup);
         } else {
-            // Drop the old tree first so peak memory is one tree, not two.
-            self.bvh = LeafBvh::default();
             self.stamp = Stamp::default();
-            self.bvh.tree = Bvh::build(soup, &self.cfg.build_config())?;
-            self.bvh.copy_triangles(soup);
-            self.built_sah = self.bvh.tree.sah_cost();
-            built.builds = 1;
+            let kept = matches!(change, Change::Meshes { .. });
+            let mut refitted = false;
+            let mut n = 0;
+            if kept && self.cfg.update != Update::Rebuild {
+                n = self.bvh.tree.refit(soup) as u64;
+                // `auto`: keep the refitted tree while it is not much worse than a fresh build
+                // was (the refit is wasted when it is, about a twentieth of a build).
+                refitted = self.cfg.update == Update::Refit
+                    || self.bvh.tree.sah_cost() <= self.cfg.rebuild_ratio as f64 * self.built_sah;
+            }
+            if refitted {
+                built.refitted = n;
+                self.bvh.copy_triangles(soup);
+            } else {
+                // Drop the old tree first so peak memory is one tree, not two.
+                self.bvh = LeafBvh::default();
+                self.bvh.tree = Bvh::build(soup, &self.cfg.build_config())?;
+                self.bvh.copy_triangles(soup);
+                self.built_sah = self.bvh.tree.sah_cost();
+                built.builds = 1;
+            }
         }
         self.stamp = scene.stamp();
         built.nodes = self.bvh.node_count() as u64;

@@ -3,6 +3,9 @@
 //! the one finder of the real meshes in `../shared/scenes`. Public so that a tracer written
 //! outside raysift can be held to the same contract.
 
+pub mod adversarial;
+pub mod soak;
+
 use crate::rays::{HitBatch, RayBatch};
 use crate::scene::Scene;
 use crate::tracer::RayCost;
