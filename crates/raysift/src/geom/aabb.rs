@@ -133,8 +133,11 @@ impl Aabb {
     /// `inv_dir` is `1 / dir` per component (±inf for zero components, which the IEEE rules turn
     /// into the right infinite slabs; a zero component with the origin exactly on a slab plane
     /// gives `0 * inf = NaN`, which `min`/`max` below drop, keeping the ray: conservative).
-    /// The exit is widened by [`super::BOX_EXIT_SLACK`] so that no hit the triangle test accepts
-    /// is lost to rounding in this test.
+    /// The exit is widened by [`super::BOX_EXIT_SLACK`] and the entry lowered by
+    /// [`BOX_ENTRY_SLACK`](super::slab::BOX_ENTRY_SLACK) relative, exactly as
+    /// [`SlabRay::entry`](super::SlabRay::entry) does (the same decision, bit for bit): every box
+    /// test in raysift is this one function of the box, so the triangle test's box gate makes each
+    /// of them conservative (see `geom::triangle`).
     #[inline(always)]
     pub fn ray_interval(
         &self,
@@ -167,6 +170,7 @@ impl Aabb {
                 t_exit = far;
             }
         }
+        let t_enter = t_enter - t_enter.abs() * super::slab::BOX_ENTRY_SLACK;
         if t_enter <= t_exit {
             Some((t_enter, t_exit))
         } else {
@@ -216,7 +220,8 @@ impl Aabb {
         // NaN slabs never move the interval (the scalar comparisons are false for them).
         let near = Vec4::select(near.is_nan_mask(), Vec4::NEG_INFINITY, near);
         let far = Vec4::select(far.is_nan_mask(), Vec4::INFINITY, far);
-        near.max_element() <= far.min_element()
+        let enter = near.max_element();
+        enter - enter.abs() * super::slab::BOX_ENTRY_SLACK <= far.min_element()
     }
 }
 

@@ -100,7 +100,9 @@ pub fn intersect_triangle(
 #[inline(always)]
 pub fn in_box_at(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, t: f32) -> bool {
     let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
-    super::SlabRay::new(origin, dir).entry(lo, hi, t, t).is_some()
+    super::SlabRay::new(origin, dir)
+        .entry(lo, hi, t, t)
+        .is_some()
 }
 
 /// True when the triangle has (nearly) zero area: `|e1 × e2|² <= 1e-14 · |e1|²·|e2|²`, i.e. the
@@ -132,7 +134,11 @@ mod tests {
     #[test]
     fn the_box_gate_refuses_phantom_hits() {
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(11);
-        let (a, b, c) = (Vec3::ZERO, Vec3::new(1.0, 0.1, 0.0), Vec3::new(0.2, 1.0, 0.05));
+        let (a, b, c) = (
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.1, 0.0),
+            Vec3::new(0.2, 1.0, 0.05),
+        );
         let lo = a.min(b).min(c) - Vec3::splat(1e-5);
         let hi = a.max(b).max(c) + Vec3::splat(1e-5);
         let (mut phantoms, mut hits) = (0, 0);
@@ -166,11 +172,17 @@ mod tests {
             if let Some(h) = intersect_triangle(o, d, a, b, c, 0.0, f32::INFINITY) {
                 hits += 1;
                 let pt = o + d * h.t;
-                assert!(pt.cmpge(lo).all() && pt.cmple(hi).all(), "{o:?} {d:?} {h:?}: {pt:?}");
+                assert!(
+                    pt.cmpge(lo).all() && pt.cmple(hi).all(),
+                    "{o:?} {d:?} {h:?}: {pt:?}"
+                );
                 assert!(mt);
             }
         }
-        assert!(phantoms > 100, "the case must exercise phantoms: {phantoms}");
+        assert!(
+            phantoms > 100,
+            "the case must exercise phantoms: {phantoms}"
+        );
         assert!(hits > 100_000, "well-conditioned hits are kept: {hits}");
     }
 

@@ -10,6 +10,7 @@
 //! | `duplicates` | every triangle of a small mesh twice (permuted corners) | camera and random |
 //! | `scale` | a mesh scaled by 1e6 or 1e-6, or moved 1e5 away | aimed at its vertices, camera rays |
 //! | `directions` | a soup | denormal-small and huge direction vectors, `t` up to 1e30 |
+//! | `camera` | a grid (tilted or not), a fan, or both | a pinhole camera (layout set: DACRT's packets, screen culling and tile leaves), often at grazing angles, sometimes jittered |
 //!
 //! Every class mixes in some ordinary rays, and intervals `[tmin, tmax]` ending exactly at the
 //! hit distances. These are the inputs of the conformance suite's adversarial cases and of the
@@ -30,6 +31,7 @@ pub const CLASSES: &[&str] = &[
     "duplicates",
     "scale",
     "directions",
+    "camera",
 ];
 
 /// One generated case.
@@ -255,6 +257,56 @@ pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
             s.name = format!("directions:{seed}");
             s
         }
+        "camera" => {
+            let k = rng.gen_range(4..30);
+            let (mut tris, _) = grid(k);
+            if rng.gen_bool(0.5) {
+                let xf = Affine3A::from_rotation_translation(
+                    Quat::from_axis_angle(unit(&mut rng), rng.gen_range(0.1..1.5)),
+                    unit(&mut rng) * rng.gen_range(0.0..5.0),
+                );
+                tris = tris
+                    .iter()
+                    .map(|t| t.map(|p| xf.transform_point3(p)))
+                    .collect();
+            }
+            if let Some(fan) = case("fan", seed, 1) {
+                for i in 0..fan.scene.len() {
+                    tris.push(fan.scene.triangles().get(i).map(|p| p * k as f32 * 0.3));
+                }
+            }
+            let scene = soup_scene(&format!("camera:{seed}"), &tris);
+            let b = scene.bounds();
+            let c = b.center();
+            let r = b.extent().length().max(1e-3);
+            // From anywhere around, down to grazing elevations over the grid's plane.
+            let elev = 10f32.powf(rng.gen_range(-4.0..0.0)) * if rng.gen() { 1.0 } else { -1.0 };
+            let az = rng.gen_range(0.0..std::f32::consts::TAU);
+            let eye =
+                c + Vec3::new(az.cos(), az.sin(), elev).normalize() * r * rng.gen_range(0.6..2.0);
+            let cam = crate::rays::Camera {
+                eye,
+                look: c + unit(&mut rng) * r * 0.1,
+                up: if rng.gen() { Vec3::Z } else { Vec3::Y },
+                fov_deg: rng.gen_range(20.0..100.0),
+            };
+            if cam.validate().is_err() {
+                return case(class, seed + 1_000_003, rays);
+            }
+            let side = (rays as f32).sqrt().max(8.0) as u32;
+            let (w, h) = (side, (side * 3 / 4).max(8));
+            out = cam.rays(w, h);
+            if rng.gen_bool(0.3) {
+                // Jittered within a pixel: still labelled pinhole (the path tracer's rays).
+                for i in 0..out.len() {
+                    let d = out.dir(i);
+                    let j = unit(&mut rng) * (cam.fov_deg.to_radians() / h as f32) * 0.4;
+                    let d = (d + j).normalize();
+                    (out.dx[i], out.dy[i], out.dz[i]) = (d.x, d.y, d.z);
+                }
+            }
+            scene
+        }
         _ => return None,
     };
     Some(Case {
@@ -273,7 +325,9 @@ mod tests {
         for c in CLASSES {
             let a = case(c, 3, 200).unwrap();
             let b = case(c, 3, 200).unwrap();
-            assert_eq!(a.rays.len(), 200, "{c}");
+            if *c != "camera" {
+                assert_eq!(a.rays.len(), 200, "{c}");
+            }
             assert_eq!(a.rays.dx, b.rays.dx, "{c}");
             assert_eq!(a.scene.triangles().v0, b.scene.triangles().v0, "{c}");
             assert!(!a.scene.is_empty());

@@ -96,10 +96,16 @@ impl SoakReport {
 }
 
 /// The tracer configurations a soak checks: `(label, entry, options)`.
-fn configurations(cfg: &SoakConfig) -> crate::Result<Vec<(String, &'static Entry, Vec<(String, String)>)>> {
+fn configurations(
+    cfg: &SoakConfig,
+) -> crate::Result<Vec<(String, &'static Entry, Vec<(String, String)>)>> {
     let mut out = Vec::new();
     let names: Vec<String> = if cfg.tracers.is_empty() {
-        tracers::names().into_iter().filter(|n| *n != "naive").map(String::from).collect()
+        tracers::names()
+            .into_iter()
+            .filter(|n| *n != "naive")
+            .map(String::from)
+            .collect()
     } else {
         cfg.tracers.clone()
     };
@@ -108,7 +114,11 @@ fn configurations(cfg: &SoakConfig) -> crate::Result<Vec<(String, &'static Entry
         out.push((e.name.to_string(), e, Vec::new()));
         if cfg.presets {
             for p in e.presets {
-                out.push((format!("{} [{}]", e.name, p.name), e, tracers::preset_opts(p)));
+                out.push((
+                    format!("{} [{}]", e.name, p.name),
+                    e,
+                    tracers::preset_opts(p),
+                ));
             }
         }
     }
@@ -173,7 +183,15 @@ pub fn soak(cfg: &SoakConfig, mut progress: impl FnMut(u64, u64)) -> crate::Resu
                 s.worst_time_ratio = ratio;
                 s.worst_case = case.name.clone();
             }
-            compare(&case, &want, &hits, &occ, label, s, &mut report.disagreements);
+            compare(
+                &case,
+                &want,
+                &hits,
+                &occ,
+                label,
+                s,
+                &mut report.disagreements,
+            );
         }
         report.cases += 1;
         report.rays += case.rays.len() as u64;
