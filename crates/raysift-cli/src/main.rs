@@ -565,7 +565,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
         if a.occlusion {
             npy::write_occlusion(path, &occ)?;
         } else {
-            npy::write_hits(path, &hits)?;
+            npy::write_hits(path, &hits, &s, false)?;
         }
     }
     let hits = nhit;
