@@ -1,0 +1,246 @@
+//! The `--json` reports, one typed struct per command (serde), so a report's keys are written
+//! down once and checked by the compiler.
+//!
+//! Times appear once: a report's top-level `prepare_ms`/`trace_ms` are its times (for `trace
+//! --repeat K`, the medians over the K runs, each run listed in `prepare_ms_runs`/`trace_ms_runs`);
+//! the counters under `stats` (and `prepare`, `passes`, `per_bounce`) carry no times of their own
+//! except a pass's own `trace_ms`.
+
+use raysift::tracer::Counters;
+use raysift::Stats;
+use serde::Serialize;
+
+/// Prints a report as one line of JSON on stdout.
+pub fn print_json(report: &impl Serialize) -> anyhow::Result<()> {
+    println!("{}", serde_json::to_string(report)?);
+    Ok(())
+}
+
+/// The median (of a non-empty list).
+pub fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Rays per microsecond (= Mrays/s).
+pub fn mrays_per_s(rays: u64, ms: f64) -> f64 {
+    rays as f64 / (ms * 1e3).max(1e-9)
+}
+
+/// A tracer's counters from a prepare and/or a trace, without times: rays, peak bytes, what the
+/// prepare built and what the trace did (each map left out when empty).
+#[derive(Serialize)]
+pub struct Counts {
+    /// Rays traced.
+    pub rays: u64,
+    /// Peak bytes the tracer allocated for the work.
+    pub peak_bytes: u64,
+    /// What the prepare built (`Stats::built`).
+    #[serde(skip_serializing_if = "Counters::is_empty")]
+    pub built: Counters,
+    /// What the trace did (`Stats::work`).
+    #[serde(skip_serializing_if = "Counters::is_empty")]
+    pub work: Counters,
+}
+
+impl Counts {
+    /// The counters of one call.
+    pub fn of(s: &Stats) -> Self {
+        Self::of_frame(&Stats::default(), s)
+    }
+
+    /// The counters of a prepare followed by a trace.
+    pub fn of_frame(prepare: &Stats, trace: &Stats) -> Self {
+        Self {
+            rays: trace.rays,
+            peak_bytes: prepare.peak_bytes.max(trace.peak_bytes),
+            built: prepare.built,
+            work: trace.work,
+        }
+    }
+}
+
+/// `trace --json`. bench/ reads `prepare_ms`, `trace_ms`, `*_runs`, `hits`, `stats.work`.
+#[derive(Serialize)]
+pub struct TraceReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub tracer: &'static str,
+    pub rays: usize,
+    pub threads: usize,
+    pub occlusion: bool,
+    /// Median over the runs.
+    pub prepare_ms: f64,
+    /// Median over the runs.
+    pub trace_ms: f64,
+    /// From the median trace time.
+    pub mrays_per_s: f64,
+    /// Hits (or occluded rays).
+    pub hits: usize,
+    pub tracer_bytes: usize,
+    pub bytes_per_triangle: f64,
+    /// Every run's prepare time, in order.
+    pub prepare_ms_runs: Vec<f64>,
+    /// Every run's trace time, in order.
+    pub trace_ms_runs: Vec<f64>,
+    /// The last run's counters.
+    pub stats: Counts,
+    /// The file written, if any.
+    pub out: Option<String>,
+}
+
+/// One pass of `render --json` (raycast): `primary`, then `shadow` with diffuse shading.
+#[derive(Serialize)]
+pub struct PassReport {
+    pub pass: &'static str,
+    pub rays: u64,
+    pub trace_ms: f64,
+    pub mrays_per_s: f64,
+    pub stats: Counts,
+}
+
+impl PassReport {
+    pub fn of(pass: &'static str, s: &Stats) -> Self {
+        Self {
+            pass,
+            rays: s.rays,
+            trace_ms: s.trace_ms,
+            mrays_per_s: mrays_per_s(s.rays, s.trace_ms),
+            stats: Counts::of(s),
+        }
+    }
+}
+
+/// `render --json` (ray casting).
+#[derive(Serialize)]
+pub struct RenderReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub tracer: &'static str,
+    pub integrator: &'static str,
+    pub shade: &'static str,
+    pub width: u32,
+    pub height: u32,
+    pub threads: usize,
+    /// Rays of every pass.
+    pub rays: u64,
+    /// Primary rays that hit.
+    pub hits: u64,
+    pub prepare_ms: f64,
+    /// The sum of the passes' trace times.
+    pub trace_ms: f64,
+    /// Prepare, trace, shading and writing.
+    pub frame_ms: f64,
+    pub mrays_per_s: f64,
+    pub tracer_bytes: usize,
+    /// What the prepare built.
+    pub prepare: Counts,
+    pub passes: Vec<PassReport>,
+    pub out: String,
+}
+
+/// One bounce depth of `render --integrator path --json` (0 = camera rays).
+#[derive(Serialize)]
+pub struct BounceReport {
+    pub depth: u32,
+    pub rays: u64,
+    pub hits: u64,
+    pub trace_ms: f64,
+    pub mrays_per_s: f64,
+    pub stats: Counts,
+}
+
+/// `render --integrator path --json`. bench/dynamic.py reads `prepare_ms`, `trace_ms` and
+/// `per_bounce` (`depth`, `rays`, `mrays_per_s`, `stats.work`).
+#[derive(Serialize)]
+pub struct PathReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub tracer: &'static str,
+    pub integrator: &'static str,
+    pub spp: u32,
+    pub bounces: u32,
+    pub width: u32,
+    pub height: u32,
+    pub threads: usize,
+    pub rays: u64,
+    pub prepare_ms: f64,
+    /// The sum over the bounces.
+    pub trace_ms: f64,
+    pub frame_ms: f64,
+    pub mrays_per_s: f64,
+    pub tracer_bytes: usize,
+    pub prepare: Counts,
+    pub per_bounce: Vec<BounceReport>,
+    pub out: String,
+}
+
+/// One frame of `animate --json`.
+#[derive(Serialize)]
+pub struct FrameReport {
+    pub frame: u32,
+    /// Animation time, 0 to 1.
+    pub time: f32,
+    pub update_ms: f64,
+    pub prepare_ms: f64,
+    /// Camera (and shadow) rays.
+    pub trace_ms: f64,
+    /// prepare_ms + trace_ms.
+    pub frame_ms: f64,
+    pub hits: u64,
+    pub tracer_bytes: usize,
+    /// What the prepare built.
+    pub built: Counters,
+}
+
+/// `animate --json`. bench/dynamic.py reads `mean_prepare_ms`, `mean_trace_ms`, `mean_frame_ms`.
+#[derive(Serialize)]
+pub struct AnimateReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub tracer: &'static str,
+    pub motion: &'static str,
+    pub width: u32,
+    pub height: u32,
+    pub threads: usize,
+    pub mean_update_ms: f64,
+    pub mean_prepare_ms: f64,
+    pub mean_trace_ms: f64,
+    pub mean_frame_ms: f64,
+    pub frames: Vec<FrameReport>,
+}
+
+/// `[x, y, z]` corners of a box.
+#[derive(Serialize)]
+pub struct Bounds {
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+}
+
+impl From<raysift::geom::Aabb> for Bounds {
+    fn from(b: raysift::geom::Aabb) -> Self {
+        Self {
+            min: b.min.to_array(),
+            max: b.max.to_array(),
+        }
+    }
+}
+
+/// `info --json`.
+#[derive(Serialize)]
+pub struct InfoReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub vertices: usize,
+    pub degenerate_triangles: usize,
+    pub meshes: usize,
+    pub bounds: Bounds,
+    pub bytes: usize,
+    pub bytes_per_triangle: f64,
+}
