@@ -45,11 +45,19 @@ enum Cmd {
     Animate(animate::AnimateArgs),
     /// Write the world-space triangles as a float32 (T, 9) .npy file [v0 v1 v2], in primitive-id order.
     Export(export::ExportArgs),
-    /// List the available tracers.
-    Tracers,
+    /// List the available tracers (--verbose: options, presets and counters; --json: all of it).
+    Tracers(tracers::TracersArgs),
 }
 
 fn main() {
+    let argv: Vec<String> = std::env::args().collect();
+    if let Some(tracer) = tracers::opt_help_requested(&argv) {
+        if let Err(e) = tracers::print_opt_help(&tracer) {
+            eprintln!("raysift: error: {e:#}");
+            std::process::exit(2);
+        }
+        return;
+    }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
@@ -79,6 +87,6 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Render(r) => pool::with_threads(&r.tracer, || render::run(&r)),
         Cmd::Animate(a) => pool::with_threads(&a.tracer, || animate::run(&a)),
         Cmd::Export(a) => export::run(&a),
-        Cmd::Tracers => tracers::run(),
+        Cmd::Tracers(a) => tracers::run(&a),
     }
 }

@@ -244,3 +244,37 @@ pub struct InfoReport {
     pub bytes: usize,
     pub bytes_per_triangle: f64,
 }
+
+/// A counter's name and meaning.
+#[derive(Serialize)]
+pub struct CounterDoc {
+    pub name: &'static str,
+    pub doc: &'static str,
+}
+
+/// A tracer's counters: what a prepare builds, what a trace does.
+#[derive(Serialize)]
+pub struct CountersDoc {
+    pub built: Vec<CounterDoc>,
+    pub work: Vec<CounterDoc>,
+}
+
+/// A configuration the conformance suite checks.
+#[derive(Serialize)]
+pub struct PresetReport {
+    pub name: &'static str,
+    /// `key: value` (the values as `--opt` takes them).
+    pub opts: std::collections::BTreeMap<&'static str, &'static str>,
+}
+
+/// One entry of `raysift tracers --json` (a list of these, in registry order).
+#[derive(Serialize)]
+pub struct TracerReport {
+    pub name: &'static str,
+    pub paper: &'static str,
+    pub summary: &'static str,
+    /// `{key, default, doc}`, in the Config's order.
+    pub options: Vec<raysift::tracers::OptionInfo>,
+    pub presets: Vec<PresetReport>,
+    pub counters: CountersDoc,
+}

@@ -56,12 +56,86 @@ fn p(dir: &Path, name: &str) -> String {
     dir.join(name).display().to_string()
 }
 
+fn json(o: &Output) -> serde_json::Value {
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}): {}",
+            String::from_utf8_lossy(&o.stdout)
+        )
+    })
+}
+
 fn tracer_names() -> Vec<String> {
-    String::from_utf8(ok(&["tracers"]).stdout)
+    json(&ok(&["tracers", "--json"]))
+        .as_array()
         .unwrap()
-        .lines()
-        .map(str::to_string)
+        .iter()
+        .map(|t| t["name"].as_str().unwrap().to_string())
         .collect()
+}
+
+#[test]
+fn tracers_lists_the_registry_with_options_and_counters() {
+    let text = String::from_utf8(ok(&["tracers"]).stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), raysift::tracers::REGISTRY.len());
+    for (line, e) in lines.iter().zip(raysift::tracers::REGISTRY) {
+        assert!(line.starts_with(e.name) && line.contains(e.paper) && line.contains(e.summary));
+    }
+    let verbose = String::from_utf8(ok(&["tracers", "--verbose"]).stdout).unwrap();
+    for e in raysift::tracers::REGISTRY {
+        for o in e.options() {
+            assert!(
+                verbose.contains(o.key) && verbose.contains(o.doc),
+                "{}",
+                o.key
+            );
+        }
+        for (name, doc) in e.work_counters.iter().chain(e.built_counters) {
+            assert!(verbose.contains(name) && verbose.contains(doc), "{name}");
+        }
+    }
+    let v = json(&ok(&["tracers", "--json"]));
+    let bvh = v
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["name"] == "bvh")
+        .unwrap();
+    assert!(bvh["paper"].as_str().unwrap().contains("Wald"));
+    assert!(bvh["summary"].is_string());
+    let opts = bvh["options"].as_array().unwrap();
+    let max_leaf = opts.iter().find(|o| o["key"] == "max_leaf").unwrap();
+    assert_eq!(max_leaf["default"], 4);
+    assert!(max_leaf["doc"].as_str().unwrap().contains("leaf"));
+    assert!(bvh["presets"].as_array().unwrap()[0]["opts"].is_object());
+    assert!(bvh["counters"]["built"].as_array().unwrap().len() > 1);
+    assert!(bvh["counters"]["work"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|c| c["name"] == "ray_tri" && c["doc"].is_string()));
+}
+
+#[test]
+fn opt_help_prints_the_tracers_options_and_exits_0() {
+    // Before any other argument is checked: `trace` would otherwise demand SCENE and --rays.
+    for (args, key) in [
+        (
+            &["trace", "--tracer", "dacrt", "--opt", "help"][..],
+            "r_limit",
+        ),
+        (&["render", "--tracer=bvh", "--opt=help"][..], "max_leaf"),
+        (&["animate", "--opt", "help"][..], "max_leaf"),
+        (&["trace", "--tracer", "naive", "--opt", "help"][..], "none"),
+    ] {
+        let out = String::from_utf8(ok(args).stdout).unwrap();
+        assert!(out.contains(key), "{args:?}: {out}");
+    }
+    fails(
+        &["trace", "--tracer", "nope", "--opt", "help"],
+        "unknown tracer",
+    );
 }
 
 #[test]
