@@ -1,7 +1,7 @@
 //! `raysift info`: what a scene holds.
 
 use crate::args::{open_scene, SCENE_HELP};
-use crate::report::{print_json, InfoReport};
+use crate::report::{meshes_of, print_json, InfoReport};
 use anyhow::Result;
 use clap::Args;
 
@@ -24,7 +24,7 @@ pub fn run(a: &InfoArgs) -> Result<()> {
             triangles: s.len(),
             vertices: s.vertex_count(),
             degenerate_triangles: s.degenerate_count(),
-            meshes: s.meshes().len(),
+            meshes: meshes_of(&s),
             bounds: b.into(),
             bytes: s.bytes(),
             bytes_per_triangle: per_triangle,
@@ -38,6 +38,24 @@ pub fn run(a: &InfoArgs) -> Result<()> {
     );
     println!("vertices   {}", s.vertex_count());
     println!("meshes     {}", s.meshes().len());
+    // Each mesh's primitive ids (the `geom` of hits.npy is the mesh's index), the first few.
+    const SHOWN: usize = 16;
+    for (m, mesh) in s.meshes().iter().enumerate().take(SHOWN) {
+        let r = s.mesh_prims(m);
+        println!(
+            "  {m:>4}  prims {}..{} ({} triangles)  {}",
+            r.start,
+            r.end,
+            r.len(),
+            mesh.name
+        );
+    }
+    if s.meshes().len() > SHOWN {
+        println!(
+            "  ... {} more (info --json lists them all)",
+            s.meshes().len() - SHOWN
+        );
+    }
     println!(
         "bounds     ({}, {}, {}) – ({}, {}, {})",
         b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z

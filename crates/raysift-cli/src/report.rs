@@ -75,6 +75,8 @@ pub struct TraceReport {
     pub rays: usize,
     pub threads: usize,
     pub occlusion: bool,
+    /// hits.npy has the `ng` field.
+    pub normals: bool,
     /// Median over the runs.
     pub prepare_ms: f64,
     /// Median over the runs.
@@ -232,6 +234,37 @@ impl From<raysift::geom::Aabb> for Bounds {
     }
 }
 
+/// One mesh of a scene: its primitive ids are `prims.start..prims.end` (the `geom` of those
+/// primitives' hits is the mesh's index in the list).
+#[derive(Serialize)]
+pub struct MeshInfo {
+    pub name: String,
+    /// Primitive-id range, end exclusive: `{"start": s, "end": e}`.
+    pub prims: std::ops::Range<usize>,
+    pub triangles: usize,
+    pub vertices: usize,
+    /// World-space bounds.
+    pub bounds: Bounds,
+}
+
+/// Every mesh of a scene, in geometry-id order.
+pub fn meshes_of(s: &raysift::Scene) -> Vec<MeshInfo> {
+    s.meshes()
+        .iter()
+        .enumerate()
+        .map(|(m, mesh)| {
+            let prims = s.mesh_prims(m);
+            MeshInfo {
+                name: mesh.name.clone(),
+                triangles: prims.len(),
+                prims,
+                vertices: mesh.positions.len(),
+                bounds: s.mesh_bounds(m).into(),
+            }
+        })
+        .collect()
+}
+
 /// `info --json`.
 #[derive(Serialize)]
 pub struct InfoReport {
@@ -239,10 +272,19 @@ pub struct InfoReport {
     pub triangles: usize,
     pub vertices: usize,
     pub degenerate_triangles: usize,
-    pub meshes: usize,
+    /// Each mesh, in geometry-id order (its length is the mesh count).
+    pub meshes: Vec<MeshInfo>,
     pub bounds: Bounds,
     pub bytes: usize,
     pub bytes_per_triangle: f64,
+}
+
+/// `export --meshes FILE`: the scene's meshes and their primitive ranges.
+#[derive(Serialize)]
+pub struct MeshesReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub meshes: Vec<MeshInfo>,
 }
 
 /// A counter's name and meaning.

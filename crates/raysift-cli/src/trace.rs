@@ -24,6 +24,9 @@ pub struct TraceArgs {
     /// Any-hit query instead of closest hit.
     #[arg(long)]
     occlusion: bool,
+    /// Add each hit's unit geometric normal to hits.npy (field `ng`, three float32).
+    #[arg(long, conflicts_with = "occlusion")]
+    normals: bool,
     /// Prepare and trace this many times in-process; times reported are medians. The output
     /// buffers are made once, before any timing, and reused by every run.
     #[arg(long, default_value_t = 1)]
@@ -86,7 +89,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         if a.occlusion {
             npy::write_occlusion(path, &occ)?;
         } else {
-            npy::write_hits(path, &hits, &s, false)?;
+            npy::write_hits(path, &hits, &s, a.normals)?;
         }
     }
     let (prepare_ms, trace_ms) = (median(&prep), median(&tr));
@@ -100,6 +103,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             rays: rays.len(),
             threads,
             occlusion: a.occlusion,
+            normals: a.normals,
             prepare_ms,
             trace_ms,
             mrays_per_s: mrays,

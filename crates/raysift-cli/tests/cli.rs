@@ -308,6 +308,143 @@ fn info_and_export() {
     assert_eq!(std::fs::metadata(&out).unwrap().len(), 128 + 80 * 36);
 }
 
+/// The meshes of `info --json` (and of `export --meshes`) cover the primitive ids in order.
+fn check_meshes(v: &serde_json::Value, triangles: u64) {
+    let meshes = v["meshes"].as_array().unwrap();
+    let mut next = 0;
+    for m in meshes {
+        assert!(m["name"].is_string());
+        assert_eq!(m["prims"]["start"], next);
+        next = m["prims"]["end"].as_u64().unwrap();
+        assert_eq!(
+            m["triangles"].as_u64().unwrap(),
+            next - m["prims"]["start"].as_u64().unwrap()
+        );
+    }
+    assert_eq!(next, triangles);
+}
+
+#[test]
+fn info_and_export_give_each_meshs_primitive_range() {
+    let v = json(&ok(&["info", "cornell", "--json"]));
+    assert_eq!(v["meshes"].as_array().unwrap().len(), 8);
+    assert_eq!(v["meshes"][6]["name"], "short_block");
+    check_meshes(&v, 32);
+    let text = String::from_utf8(ok(&["info", "cornell"]).stdout).unwrap();
+    assert!(
+        text.contains("prims 12..22 (10 triangles)  short_block"),
+        "{text}"
+    );
+
+    let d = tmp();
+    let (tris, meshes) = (p(d.path(), "t.npy"), p(d.path(), "meshes.json"));
+    ok(&["export", "cornell", "--out", &tris, "--meshes", &meshes]);
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&meshes).unwrap()).unwrap();
+    assert_eq!(m["triangles"], 32);
+    check_meshes(&m, 32);
+    assert_eq!(m["meshes"], v["meshes"]);
+    // --meshes alone is enough.
+    std::fs::remove_file(&meshes).unwrap();
+    ok(&["export", "cornell", "--meshes", &meshes]);
+    assert!(std::path::Path::new(&meshes).exists());
+}
+
+#[test]
+fn hits_say_which_mesh_and_optionally_the_normal() {
+    #[derive(npyz::Deserialize)]
+    struct Rec {
+        t: f32,
+        prim: u32,
+        geom: u32,
+        #[allow(dead_code)]
+        u: f32,
+        #[allow(dead_code)]
+        v: f32,
+        ng: [f32; 3],
+    }
+    let d = tmp();
+    let (rays, hits, plain) = (
+        p(d.path(), "r.npy"),
+        p(d.path(), "h.npy"),
+        p(d.path(), "p.npy"),
+    );
+    ok(&[
+        "rays", "camera", "cornell", "--width", "32", "--height", "32", "--out", &rays,
+    ]);
+    ok(&[
+        "trace",
+        "cornell",
+        "--rays",
+        &rays,
+        "--tracer",
+        "bvh",
+        "--out",
+        &hits,
+        "--normals",
+    ]);
+    let scene = raysift::scene::procedural::open("cornell").unwrap();
+    let recs: Vec<Rec> = npyz::NpyFile::new(std::fs::File::open(&hits).unwrap())
+        .unwrap()
+        .into_vec()
+        .unwrap();
+    assert_eq!(recs.len(), 32 * 32);
+    let mut meshes_hit = std::collections::BTreeSet::new();
+    for r in &recs {
+        if r.prim == u32::MAX {
+            assert_eq!((r.geom, r.ng), (u32::MAX, [0.0; 3]));
+            assert!(r.t.is_infinite());
+            continue;
+        }
+        assert!(scene
+            .mesh_prims(r.geom as usize)
+            .contains(&(r.prim as usize)));
+        let n = glam::Vec3::from_array(r.ng);
+        assert!((n.length() - 1.0).abs() < 1e-5, "{n}");
+        assert_eq!(n, scene.normal(r.prim as usize));
+        meshes_hit.insert(r.geom);
+    }
+    assert!(meshes_hit.len() > 3, "{meshes_hit:?}");
+    // Without --normals: geom but no ng; both are read back by `rays shadow`.
+    ok(&[
+        "trace", "cornell", "--rays", &rays, "--tracer", "bvh", "--out", &plain,
+    ]);
+    let header = String::from_utf8_lossy(&std::fs::read(&plain).unwrap()[..128]).to_string();
+    assert!(
+        header.contains("'geom'") && !header.contains("'ng'"),
+        "{header}"
+    );
+    for h in [&hits, &plain] {
+        ok(&[
+            "rays",
+            "shadow",
+            "cornell",
+            "--rays",
+            &rays,
+            "--hits",
+            h,
+            "--light",
+            "0,1.9,0",
+            "--out",
+            &p(d.path(), "s.npy"),
+        ]);
+    }
+    let o = raysift(&[
+        "trace",
+        "cornell",
+        "--rays",
+        &rays,
+        "--out",
+        &hits,
+        "--normals",
+        "--occlusion",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "--normals has no meaning for occlusion"
+    );
+}
+
 #[test]
 fn bad_input_is_a_clean_error_without_output() {
     let d = tmp();
