@@ -21,16 +21,16 @@ pub struct AnimateArgs {
     /// Number of frames (time runs from 0 to 1 over them).
     #[arg(long, default_value_t = 8)]
     frames: u32,
-    /// Output folder for frame_NNNN.png (created if missing).
-    #[arg(long)]
-    out: PathBuf,
+    /// Output folder for frame_NNNN.png (created if missing; not needed with --no-images).
+    #[arg(long, required_unless_present = "no_images")]
+    out: Option<PathBuf>,
     /// Only time the frames; write no images.
     #[arg(long)]
     no_images: bool,
     #[command(flatten)]
     view: ViewArgs,
-    /// Shading: normal, depth or diffuse.
-    #[arg(long, default_value = "diffuse")]
+    /// Shading: diffuse (with shadows), normal or depth.
+    #[arg(long, default_value = "diffuse", value_parser = crate::render::shade_parser())]
     shade: Shade,
     #[command(flatten)]
     pub tracer: TracerArgs,
@@ -56,9 +56,11 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
     // Frame the whole motion: the union of the first and last frames' bounds.
     let bounds = anim.at(0.0)?.bounds().union(anim.at(1.0)?.bounds());
     let cam = camera_for(&bounds, &a.view)?;
-    if !a.no_images {
-        std::fs::create_dir_all(&a.out)
-            .with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
+    // The folder for the frames, None with --no-images (clap demands --out otherwise).
+    let out = a.out.as_ref().filter(|_| !a.no_images);
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     }
     let pb = progress::frames(a.frames);
     let mut frames = Vec::new();
@@ -75,8 +77,8 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
         let (w, h) = (a.view.width, a.view.height);
         let (img, rs) = render::raycast(scene, tracer.as_ref(), &cam, w, h, a.shade, None)?;
         let trace_ms = rs.primary.trace_ms + rs.shadow.as_ref().map_or(0.0, |s| s.trace_ms);
-        if !a.no_images {
-            img.save_png(&a.out.join(format!("frame_{k:04}.png")))?;
+        if let Some(dir) = out {
+            img.save_png(&dir.join(format!("frame_{k:04}.png")))?;
         }
         frames.push(FrameReport {
             frame: k,

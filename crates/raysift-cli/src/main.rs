@@ -5,8 +5,9 @@
 //! plus what they share: arguments (`args`), thread pools and pinning (`pool`), progress display
 //! (`progress`) and the typed `--json` reports (`report`).
 //!
-//! Every error is one line on stderr naming the file and place, with exit code 2; output files are
-//! written atomically, so a failed command leaves none behind.
+//! Every error is one line on stderr naming the file and place (or clap's whole usage message for
+//! a usage error), with exit code 2; output files are written atomically, so a failed command
+//! leaves none behind.
 
 mod animate;
 mod args;
@@ -58,21 +59,9 @@ fn main() {
         }
         return;
     }
-    let cli = match Cli::try_parse() {
-        Ok(c) => c,
-        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
-        Err(e) => {
-            // Usage errors as one line, like every other error (the full usage is in --help).
-            let text = e.render().to_string();
-            let first = text
-                .lines()
-                .next()
-                .unwrap_or("invalid arguments")
-                .trim_start_matches("error: ");
-            eprintln!("raysift: error: {first} (see --help)");
-            std::process::exit(2);
-        }
-    };
+    // Usage errors are clap's whole message (what is missing or wrong, the allowed values, the
+    // usage line), exit code 2; no arguments at all print the help, also with code 2.
+    let cli = Cli::parse();
     if let Err(e) = run(cli) {
         eprintln!("raysift: error: {e:#}");
         std::process::exit(2);

@@ -1,12 +1,12 @@
 //! `raysift render`: an image by ray casting (normal, depth or diffuse shading with shadows) or
 //! diffuse path tracing.
 
-use crate::args::{camera_for, make_tracer, open_scene_or_default, parse_vec3};
+use crate::args::{camera_for, check_png, make_tracer, open_scene_or_default, parse_vec3};
 use crate::args::{TracerArgs, ViewArgs};
 use crate::progress::spinner;
 use crate::report::{mrays_per_s, print_json, BounceReport, Counts, PassReport};
 use crate::report::{PathReport, RenderReport};
-use anyhow::Result;
+use anyhow::{bail, Result};
 use clap::Args;
 use glam::Vec3;
 use raysift::render::{self, Shade};
@@ -23,18 +23,18 @@ pub struct RenderArgs {
     /// Point light x,y,z for diffuse shading (default: above and right of the eye).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     light: Option<Vec3>,
-    /// Shading: normal, depth or diffuse (with shadows).
-    #[arg(long, default_value = "diffuse")]
-    shade: Shade,
+    /// Ray casting's shading: diffuse (with shadows; the default), normal or depth.
+    #[arg(long, value_parser = shade_parser())]
+    shade: Option<Shade>,
     /// Integrator: raycast (one ray per pixel, shaded) or path (diffuse path tracing under a sky).
-    #[arg(long, default_value = "raycast", value_parser = ["raycast", "path"])]
-    integrator: String,
-    /// Path tracing: samples per pixel.
-    #[arg(long, default_value_t = 4)]
-    spp: u32,
-    /// Path tracing: bounces after the primary hit (no Russian roulette).
-    #[arg(long, default_value_t = 7)]
-    bounces: u32,
+    #[arg(long, value_enum, default_value_t = Integrator::Raycast)]
+    integrator: Integrator,
+    /// Path tracing: samples per pixel, at least 1 [default: 4].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
+    #[arg(long)]
+    bounces: Option<u32>,
     /// Output PNG.
     #[arg(long, default_value = "raysift.png")]
     out: PathBuf,
@@ -43,6 +43,50 @@ pub struct RenderArgs {
     stats: bool,
     #[command(flatten)]
     pub tracer: TracerArgs,
+}
+
+/// How `render` makes its image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Integrator {
+    /// One ray per pixel, shaded (`--shade`).
+    Raycast,
+    /// Diffuse path tracing under a sky, one batch per bounce.
+    Path,
+}
+
+/// `--shade`'s parser: the allowed names listed in `--help` and in the error.
+pub fn shade_parser() -> impl clap::builder::TypedValueParser<Value = Shade> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(["diffuse", "normal", "depth"])
+        .map(|s| s.parse::<Shade>().expect("a listed shading"))
+}
+
+/// Refuses arguments the chosen integrator would ignore, and an image it cannot write, before any
+/// work is done.
+fn check(a: &RenderArgs) -> Result<()> {
+    check_png(&a.out)?;
+    let path = a.integrator == Integrator::Path;
+    if path {
+        if a.shade.is_some() {
+            bail!("--shade applies to ray casting, not to --integrator path (which shades diffusely under a sky)");
+        }
+        if a.light.is_some() {
+            bail!("--light applies to ray casting with --shade diffuse, not to --integrator path (lit by its sky)");
+        }
+    } else {
+        for (given, flag) in [
+            (a.spp.is_some(), "--spp"),
+            (a.bounces.is_some(), "--bounces"),
+        ] {
+            if given {
+                bail!("{flag} applies to --integrator path only");
+            }
+        }
+        if a.light.is_some() && a.shade.is_some_and(|s| s != Shade::Diffuse) {
+            bail!("--light applies to --shade diffuse only");
+        }
+    }
+    Ok(())
 }
 
 /// The CLI name of a shading.
@@ -55,6 +99,7 @@ pub fn shade_name(s: Shade) -> &'static str {
 }
 
 pub fn run(a: &RenderArgs) -> Result<()> {
+    check(a)?;
     let mut tracer = make_tracer(&a.tracer)?;
     let s = open_scene_or_default(a.scene.as_deref())?;
     let cam = camera_for(&s.bounds(), &a.view)?;
@@ -62,11 +107,12 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let t0 = Instant::now();
     let pb = spinner(format!("{}: rendering {w}×{h}", tracer.name()));
     let prep = tracer.prepare_timed(&s)?;
-    if a.integrator == "path" {
+    if a.integrator == Integrator::Path {
+        let defaults = render::path::PathConfig::default();
         let cfg = render::path::PathConfig {
-            spp: a.spp.max(1),
-            bounces: a.bounces,
-            ..Default::default()
+            spp: a.spp.unwrap_or(defaults.spp),
+            bounces: a.bounces.unwrap_or(defaults.bounces),
+            ..defaults
         };
         let (img, per_depth) = render::path::path_trace(&s, tracer.as_ref(), &cam, w, h, &cfg)?;
         pb.finish_and_clear();
@@ -120,7 +166,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let (img, rs) = render::raycast(&s, tracer.as_ref(), &cam, w, h, a.shade, a.light)?;
+    let shade = a.shade.unwrap_or_default();
+    let (img, rs) = render::raycast(&s, tracer.as_ref(), &cam, w, h, shade, a.light)?;
     pb.finish_and_clear();
     img.save_png(&a.out)?;
     let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -134,7 +181,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             triangles: s.len(),
             tracer: tracer.name(),
             integrator: "raycast",
-            shade: shade_name(a.shade),
+            shade: shade_name(shade),
             width: w,
             height: h,
             threads: rayon::current_num_threads(),

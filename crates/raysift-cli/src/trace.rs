@@ -18,7 +18,8 @@ pub struct TraceArgs {
     /// Input rays.npy.
     #[arg(long)]
     rays: PathBuf,
-    /// Output hits.npy (or uint8 occlusion flags with --occlusion).
+    /// Output hits.npy (or uint8 occlusion flags with --occlusion); without it nothing is
+    /// written (stderr says so), for timing runs.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Any-hit query instead of closest hit.
@@ -95,6 +96,16 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let (prepare_ms, trace_ms) = (median(&prep), median(&tr));
     let mrays = mrays_per_s(rays.len() as u64, trace_ms);
     let threads = rayon::current_num_threads();
+    if a.out.is_none() {
+        eprintln!(
+            "raysift: note: no --out given, so no {} were written",
+            if a.occlusion {
+                "occlusion flags"
+            } else {
+                "hits"
+            }
+        );
+    }
     if a.tracer.json {
         return print_json(&TraceReport {
             scene: s.name.clone(),
