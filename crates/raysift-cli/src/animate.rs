@@ -8,6 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use raysift::render::{self, Shade};
 use raysift::scene::animate::{Animation, Motion};
+use raysift::scene::{Change, Stamp};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -64,6 +65,8 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
     }
     let pb = progress::frames(a.frames);
     let mut frames = Vec::new();
+    // The scene as the tracer was last prepared for it.
+    let mut prepared: Option<Stamp> = None;
     for k in 0..a.frames {
         let t = if a.frames == 1 {
             0.0
@@ -73,6 +76,12 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
         let u0 = Instant::now();
         let scene = anim.at(t)?;
         let update_ms = u0.elapsed().as_secs_f64() * 1e3;
+        let (change, moved, deformed) = match prepared.map(|p| scene.changes_since(p)) {
+            None | Some(Change::All) => ("all", 0, 0),
+            Some(Change::None) => ("none", 0, 0),
+            Some(Change::Meshes { moved, deformed }) => ("meshes", moved.len(), deformed.len()),
+        };
+        prepared = Some(scene.stamp());
         let prep = tracer.prepare_timed(scene)?;
         let (w, h) = (a.view.width, a.view.height);
         let (img, rs) = render::raycast(scene, tracer.as_ref(), &cam, w, h, a.shade, None)?;
@@ -83,6 +92,9 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
         frames.push(FrameReport {
             frame: k,
             time: t,
+            change,
+            moved,
+            deformed,
             update_ms,
             prepare_ms: prep.prepare_ms,
             trace_ms,
@@ -107,6 +119,7 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
             triangles: base.len(),
             tracer: tracer.name(),
             motion: motion_name(a.motion),
+            meshes: anim.scene().meshes().len(),
             width: a.view.width,
             height: a.view.height,
             threads: rayon::current_num_threads(),

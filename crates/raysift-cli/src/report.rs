@@ -189,6 +189,13 @@ pub struct FrameReport {
     pub frame: u32,
     /// Animation time, 0 to 1.
     pub time: f32,
+    /// What changed since the previous frame (what the tracer's prepare was told):
+    /// `all` (the first frame: never prepared), `none`, or `meshes` (see `moved`, `deformed`).
+    pub change: &'static str,
+    /// Meshes that moved rigidly (a new transform, same positions).
+    pub moved: usize,
+    /// Meshes whose positions changed (deformed; they may also have moved).
+    pub deformed: usize,
     pub update_ms: f64,
     pub prepare_ms: f64,
     /// Camera (and shadow) rays.
@@ -208,6 +215,8 @@ pub struct AnimateReport {
     pub triangles: usize,
     pub tracer: &'static str,
     pub motion: &'static str,
+    /// Meshes of the animated scene (spin-parts splits a single mesh into octant parts).
+    pub meshes: usize,
     pub width: u32,
     pub height: u32,
     pub threads: usize,

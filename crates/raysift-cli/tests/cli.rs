@@ -682,6 +682,22 @@ fn animate_writes_frames_and_reports_per_frame_times() {
             .all(|f| f["trace_ms"].as_f64().unwrap() > 0.0 && f["prepare_ms"].is_number()));
         // The geometry changes between frames, so the hit counts do too (explode spreads out).
         assert!(d.path().join("frames/frame_0002.png").exists());
+        // Each frame says what changed since the last: everything at first, then explode
+        // deforms its one mesh and spin-parts moves every part rigidly.
+        let meshes = v["meshes"].as_u64().unwrap();
+        assert_eq!(frames[0]["change"], "all");
+        for f in &frames[1..] {
+            assert_eq!(f["change"], "meshes");
+            let (moved, deformed) = (
+                f["moved"].as_u64().unwrap(),
+                f["deformed"].as_u64().unwrap(),
+            );
+            match motion {
+                "explode" => assert_eq!((moved, deformed), (0, 1)),
+                _ => assert_eq!((moved, deformed), (meshes, 0)),
+            }
+        }
+        assert!(v["mean_frame_ms"].as_f64().unwrap() > 0.0);
     }
     usage_fails(
         &["animate", "sphere:300", "--motion", "wobble", "--out", &out],
