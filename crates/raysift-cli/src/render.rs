@@ -1,14 +1,15 @@
-//! `raysift render`: an image by ray casting (normal, depth or diffuse shading with shadows) or
-//! diffuse path tracing.
+//! `raysift render`: an image by ray casting (normal, depth or diffuse shading with shadows),
+//! diffuse path tracing, or a heatmap of the tracer's per-ray cost.
 
 use crate::args::{camera_for, check_png, make_tracer, open_scene_or_default, parse_vec3};
 use crate::args::{TracerArgs, ViewArgs};
 use crate::progress::spinner;
 use crate::report::{mrays_per_s, print_json, BounceReport, Counts, PassReport};
-use crate::report::{PathReport, RenderReport};
+use crate::report::{HeatmapReport, PathReport, RenderReport};
 use anyhow::{bail, Result};
 use clap::Args;
 use glam::Vec3;
+use raysift::render::heatmap::{self, CostKind};
 use raysift::render::{self, Shade};
 use raysift::Stats;
 use std::path::PathBuf;
@@ -35,6 +36,10 @@ pub struct RenderArgs {
     /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
     #[arg(long)]
     bounces: Option<u32>,
+    /// Draw the tracer's per-ray cost instead of shading: nodes entered, tests, or ray/triangle
+    /// tests, in false colour with a colour bar (the scale is printed too).
+    #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
+    heatmap: Option<CostKind>,
     /// Output PNG.
     #[arg(long, default_value = "raysift.png")]
     out: PathBuf,
@@ -61,11 +66,29 @@ pub fn shade_parser() -> impl clap::builder::TypedValueParser<Value = Shade> {
         .map(|s| s.parse::<Shade>().expect("a listed shading"))
 }
 
+/// `--heatmap`'s parser: the allowed names listed in `--help` and in the error.
+fn heatmap_parser() -> impl clap::builder::TypedValueParser<Value = CostKind> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(CostKind::ALL.map(CostKind::name))
+        .map(|s| s.parse::<CostKind>().expect("a listed count"))
+}
+
 /// Refuses arguments the chosen integrator would ignore, and an image it cannot write, before any
 /// work is done.
 fn check(a: &RenderArgs) -> Result<()> {
     check_png(&a.out)?;
     let path = a.integrator == Integrator::Path;
+    if a.heatmap.is_some() {
+        for (given, flag) in [
+            (path, "--integrator path"),
+            (a.shade.is_some(), "--shade"),
+            (a.light.is_some(), "--light"),
+        ] {
+            if given {
+                bail!("--heatmap draws the camera rays' cost; it takes no {flag}");
+            }
+        }
+    }
     if path {
         if a.shade.is_some() {
             bail!("--shade applies to ray casting, not to --integrator path (which shades diffusely under a sky)");
@@ -107,6 +130,48 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let t0 = Instant::now();
     let pb = spinner(format!("{}: rendering {w}×{h}", tracer.name()));
     let prep = tracer.prepare_timed(&s)?;
+    if let Some(kind) = a.heatmap {
+        let m = heatmap::heatmap(&s, tracer.as_ref(), &cam, w, h, kind)?;
+        pb.finish_and_clear();
+        m.image.save_png(&a.out)?;
+        let sc = m.scale;
+        eprintln!(
+            "{} per ray ({}): min {}, max {}, mean {:.2}; wrote {} ({w}×{h} + {} pixel colour bar)",
+            kind.name(),
+            tracer.name(),
+            sc.min,
+            sc.max,
+            sc.mean,
+            a.out.display(),
+            m.image.width - w
+        );
+        if a.tracer.json {
+            print_json(&HeatmapReport {
+                scene: s.name.clone(),
+                triangles: s.len(),
+                tracer: tracer.name(),
+                heatmap: kind.name(),
+                width: w,
+                height: h,
+                image_width: m.image.width,
+                image_height: m.image.height,
+                threads: rayon::current_num_threads(),
+                rays: m.stats.rays,
+                hits: m.hits,
+                scale: sc,
+                prepare_ms: prep.prepare_ms,
+                trace_ms: m.stats.trace_ms,
+                mrays_per_s: mrays_per_s(m.stats.rays, m.stats.trace_ms),
+                tracer_bytes: tracer.bytes(),
+                stats: Counts::of_frame(&prep, &m.stats),
+                out: a.out.display().to_string(),
+            })?;
+        }
+        if a.stats {
+            print_counters(&prep, tracer.bytes(), &[("camera", &m.stats)]);
+        }
+        return Ok(());
+    }
     if a.integrator == Integrator::Path {
         let defaults = render::path::PathConfig::default();
         let cfg = render::path::PathConfig {

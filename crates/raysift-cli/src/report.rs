@@ -329,3 +329,32 @@ pub struct TracerReport {
     pub presets: Vec<PresetReport>,
     pub counters: CountersDoc,
 }
+
+/// `render --heatmap KIND --json`.
+#[derive(Serialize)]
+pub struct HeatmapReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub tracer: &'static str,
+    /// What was drawn: nodes, tests or triangles (per ray).
+    pub heatmap: &'static str,
+    /// The view (the camera rays).
+    pub width: u32,
+    pub height: u32,
+    /// The image written: the view plus the colour bar to its right.
+    pub image_width: u32,
+    pub image_height: u32,
+    pub threads: usize,
+    pub rays: u64,
+    pub hits: u64,
+    /// The drawn count's smallest, largest and mean value per ray.
+    pub scale: raysift::render::heatmap::HeatScale,
+    pub prepare_ms: f64,
+    /// The camera rays traced with a per-ray cost record.
+    pub trace_ms: f64,
+    pub mrays_per_s: f64,
+    pub tracer_bytes: usize,
+    /// The prepare's and the trace's counters.
+    pub stats: Counts,
+    pub out: String,
+}

@@ -782,6 +782,11 @@ fn images_other_than_png_are_refused_before_any_work() {
             name,
         );
         assert!(e.contains("PNG"), "{e}");
+        let e = fails(
+            &["render", "sphere:80", "--heatmap", "nodes", "--out", &out],
+            name,
+        );
+        assert!(e.contains("PNG"), "{e}");
         assert!(!d.path().join(name).exists(), "{name} written");
     }
     // Upper case is still PNG.
@@ -1034,5 +1039,99 @@ fn unknown_options_list_the_valid_ones() {
             "nope=1",
         ],
         "takes no options",
+    );
+}
+
+/// Width and height of a PNG, from its IHDR chunk.
+fn png_size(path: &str) -> (u32, u32) {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[1..4], b"PNG");
+    let be = |k: usize| u32::from_be_bytes(b[k..k + 4].try_into().unwrap());
+    (be(16), be(20))
+}
+
+#[test]
+fn heatmaps_draw_per_ray_cost_with_a_scale() {
+    let d = tmp();
+    let (w, h) = (48u32, 32u32);
+    let (ws, hs) = (w.to_string(), h.to_string());
+    let heat = |tracer: &str, kind: &str, out: &str| {
+        let o = ok(&[
+            "render",
+            "sphere:400",
+            "--tracer",
+            tracer,
+            "--heatmap",
+            kind,
+            "--width",
+            &ws,
+            "--height",
+            &hs,
+            "--out",
+            out,
+            "--json",
+        ]);
+        (json(&o), String::from_utf8(o.stderr).unwrap())
+    };
+    // Brute force tests every triangle for every ray.
+    let out = p(d.path(), "naive.png");
+    let (v, err) = heat("naive", "triangles", &out);
+    let tris = v["triangles"].as_u64().unwrap();
+    assert_eq!(v["scale"]["min"], tris);
+    assert_eq!(v["scale"]["max"], tris);
+    assert_eq!(v["scale"]["mean"].as_f64().unwrap(), tris as f64);
+    assert!(err.contains(&format!("min {tris}, max {tris}")), "{err}");
+    // The BVH does more work where the sphere is than around it; the image is the view plus
+    // the bar, as the report says.
+    let out = p(d.path(), "bvh.png");
+    let (v, err) = heat("bvh", "nodes", &out);
+    let (min, max) = (
+        v["scale"]["min"].as_u64().unwrap(),
+        v["scale"]["max"].as_u64().unwrap(),
+    );
+    assert!(min < max, "{v}");
+    assert!(
+        err.contains("nodes per ray") && err.contains("mean"),
+        "{err}"
+    );
+    let (iw, ih) = png_size(&out);
+    assert_eq!((iw, ih), (v["image_width"].as_u64().unwrap() as u32, h));
+    assert!(iw > w, "a colour bar beside the {w}-pixel view: {iw}");
+    assert_eq!(v["width"], w);
+    assert_eq!(v["rays"], (w * h) as u64);
+    assert!(v["stats"]["work"]["nodes"].as_u64().unwrap() > 0);
+    // Every tracer draws (one that records no cost yet draws a scale of 0 to 0).
+    for t in tracer_names() {
+        heat(&t, "tests", &p(d.path(), &format!("{t}.png")));
+    }
+    // A heatmap shades nothing and traces no paths.
+    let out = p(d.path(), "x.png");
+    fails(
+        &[
+            "render",
+            "--heatmap",
+            "nodes",
+            "--shade",
+            "depth",
+            "--out",
+            &out,
+        ],
+        "--shade",
+    );
+    fails(
+        &[
+            "render",
+            "--heatmap",
+            "nodes",
+            "--integrator",
+            "path",
+            "--out",
+            &out,
+        ],
+        "path",
+    );
+    usage_fails(
+        &["render", "--heatmap", "bytes", "--out", &out],
+        "triangles",
     );
 }
