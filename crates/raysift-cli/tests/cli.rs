@@ -1135,3 +1135,78 @@ fn heatmaps_draw_per_ray_cost_with_a_scale() {
         "triangles",
     );
 }
+
+#[test]
+fn trace_json_times_once_medians_at_the_top_counters_under_stats() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:500",
+        "--count",
+        "300",
+        "--out",
+        &rays,
+    ]);
+    let o = ok(&[
+        "trace",
+        "sphere:500",
+        "--rays",
+        &rays,
+        "--tracer",
+        "bvh",
+        "--repeat",
+        "3",
+        "--json",
+    ]);
+    let v = json(&o);
+    // The keys bench/ reads.
+    for k in [
+        "scene",
+        "triangles",
+        "tracer",
+        "rays",
+        "threads",
+        "occlusion",
+        "prepare_ms",
+        "trace_ms",
+        "mrays_per_s",
+        "hits",
+        "tracer_bytes",
+        "bytes_per_triangle",
+        "prepare_ms_runs",
+        "trace_ms_runs",
+        "stats",
+    ] {
+        assert!(!v[k].is_null(), "{k} missing: {v}");
+    }
+    let runs = |k: &str| -> Vec<f64> {
+        let mut r: Vec<f64> = v[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        r.sort_by(f64::total_cmp);
+        r
+    };
+    assert_eq!(
+        v["trace_ms"].as_f64().unwrap(),
+        runs("trace_ms_runs")[1],
+        "the median"
+    );
+    assert_eq!(
+        v["prepare_ms"].as_f64().unwrap(),
+        runs("prepare_ms_runs")[1]
+    );
+    // No second trace_ms: stats has the last run's counters only.
+    let st = v["stats"].as_object().unwrap();
+    assert!(
+        !st.contains_key("trace_ms") && !st.contains_key("prepare_ms"),
+        "{v}"
+    );
+    assert_eq!(st["rays"], 300);
+    assert!(st["work"]["ray_tri"].as_u64().unwrap() > 0);
+    assert!(st["built"]["nodes"].as_u64().unwrap() > 0);
+}
