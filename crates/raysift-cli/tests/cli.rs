@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+/// The binary under test: this build's, or `$RAYSIFT_BIN` (to hold another build, such as an
+/// installed or an older `raysift`, to these tests).
 fn raysift(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raysift"))
-        .args(args)
-        .output()
-        .expect("raysift runs")
+    let bin = std::env::var("RAYSIFT_BIN").unwrap_or(env!("CARGO_BIN_EXE_raysift").into());
+    Command::new(bin).args(args).output().expect("raysift runs")
 }
 
 fn ok(args: &[&str]) -> Output {
@@ -48,6 +48,27 @@ fn fails(args: &[&str], needle: &str) -> String {
     err
 }
 
+/// Runs a command with a usage error: exit code 2 and clap's whole message (what is wrong,
+/// mentioning `needle`, and the usage line), no panic.
+fn usage_fails(args: &[&str], needle: &str) -> String {
+    let o = raysift(args);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(o.status.code(), Some(2), "raysift {args:?}: {err}");
+    assert!(
+        !err.contains("panicked"),
+        "raysift {args:?} panicked: {err}"
+    );
+    assert!(
+        err.contains(needle),
+        "raysift {args:?}: error should mention {needle:?}: {err}"
+    );
+    assert!(
+        err.contains("Usage:") || err.contains("--help"),
+        "raysift {args:?}: the usage should follow: {err}"
+    );
+    err
+}
+
 fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
 }
@@ -56,12 +77,86 @@ fn p(dir: &Path, name: &str) -> String {
     dir.join(name).display().to_string()
 }
 
+fn json(o: &Output) -> serde_json::Value {
+    serde_json::from_slice(&o.stdout).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not JSON ({e}): {}",
+            String::from_utf8_lossy(&o.stdout)
+        )
+    })
+}
+
 fn tracer_names() -> Vec<String> {
-    String::from_utf8(ok(&["tracers"]).stdout)
+    json(&ok(&["tracers", "--json"]))
+        .as_array()
         .unwrap()
-        .lines()
-        .map(str::to_string)
+        .iter()
+        .map(|t| t["name"].as_str().unwrap().to_string())
         .collect()
+}
+
+#[test]
+fn tracers_lists_the_registry_with_options_and_counters() {
+    let text = String::from_utf8(ok(&["tracers"]).stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), raysift::tracers::REGISTRY.len());
+    for (line, e) in lines.iter().zip(raysift::tracers::REGISTRY) {
+        assert!(line.starts_with(e.name) && line.contains(e.paper) && line.contains(e.summary));
+    }
+    let verbose = String::from_utf8(ok(&["tracers", "--verbose"]).stdout).unwrap();
+    for e in raysift::tracers::REGISTRY {
+        for o in e.options() {
+            assert!(
+                verbose.contains(o.key) && verbose.contains(o.doc),
+                "{}",
+                o.key
+            );
+        }
+        for (name, doc) in e.work_counters.iter().chain(e.built_counters) {
+            assert!(verbose.contains(name) && verbose.contains(doc), "{name}");
+        }
+    }
+    let v = json(&ok(&["tracers", "--json"]));
+    let bvh = v
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["name"] == "bvh")
+        .unwrap();
+    assert!(bvh["paper"].as_str().unwrap().contains("Wald"));
+    assert!(bvh["summary"].is_string());
+    let opts = bvh["options"].as_array().unwrap();
+    let max_leaf = opts.iter().find(|o| o["key"] == "max_leaf").unwrap();
+    assert_eq!(max_leaf["default"], 4);
+    assert!(max_leaf["doc"].as_str().unwrap().contains("leaf"));
+    assert!(bvh["presets"].as_array().unwrap()[0]["opts"].is_object());
+    assert!(bvh["counters"]["built"].as_array().unwrap().len() > 1);
+    assert!(bvh["counters"]["work"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|c| c["name"] == "ray_tri" && c["doc"].is_string()));
+}
+
+#[test]
+fn opt_help_prints_the_tracers_options_and_exits_0() {
+    // Before any other argument is checked: `trace` would otherwise demand SCENE and --rays.
+    for (args, key) in [
+        (
+            &["trace", "--tracer", "dacrt", "--opt", "help"][..],
+            "r_limit",
+        ),
+        (&["render", "--tracer=bvh", "--opt=help"][..], "max_leaf"),
+        (&["animate", "--opt", "help"][..], "max_leaf"),
+        (&["trace", "--tracer", "naive", "--opt", "help"][..], "none"),
+    ] {
+        let out = String::from_utf8(ok(args).stdout).unwrap();
+        assert!(out.contains(key), "{args:?}: {out}");
+    }
+    fails(
+        &["trace", "--tracer", "nope", "--opt", "help"],
+        "unknown tracer",
+    );
 }
 
 #[test]
@@ -232,6 +327,143 @@ fn info_and_export() {
     let out = p(d.path(), "t.npy");
     ok(&["export", "sphere:80", "--out", &out]);
     assert_eq!(std::fs::metadata(&out).unwrap().len(), 128 + 80 * 36);
+}
+
+/// The meshes of `info --json` (and of `export --meshes`) cover the primitive ids in order.
+fn check_meshes(v: &serde_json::Value, triangles: u64) {
+    let meshes = v["meshes"].as_array().unwrap();
+    let mut next = 0;
+    for m in meshes {
+        assert!(m["name"].is_string());
+        assert_eq!(m["prims"]["start"], next);
+        next = m["prims"]["end"].as_u64().unwrap();
+        assert_eq!(
+            m["triangles"].as_u64().unwrap(),
+            next - m["prims"]["start"].as_u64().unwrap()
+        );
+    }
+    assert_eq!(next, triangles);
+}
+
+#[test]
+fn info_and_export_give_each_meshs_primitive_range() {
+    let v = json(&ok(&["info", "cornell", "--json"]));
+    assert_eq!(v["meshes"].as_array().unwrap().len(), 8);
+    assert_eq!(v["meshes"][6]["name"], "short_block");
+    check_meshes(&v, 32);
+    let text = String::from_utf8(ok(&["info", "cornell"]).stdout).unwrap();
+    assert!(
+        text.contains("prims 12..22 (10 triangles)  short_block"),
+        "{text}"
+    );
+
+    let d = tmp();
+    let (tris, meshes) = (p(d.path(), "t.npy"), p(d.path(), "meshes.json"));
+    ok(&["export", "cornell", "--out", &tris, "--meshes", &meshes]);
+    let m: serde_json::Value = serde_json::from_slice(&std::fs::read(&meshes).unwrap()).unwrap();
+    assert_eq!(m["triangles"], 32);
+    check_meshes(&m, 32);
+    assert_eq!(m["meshes"], v["meshes"]);
+    // --meshes alone is enough.
+    std::fs::remove_file(&meshes).unwrap();
+    ok(&["export", "cornell", "--meshes", &meshes]);
+    assert!(std::path::Path::new(&meshes).exists());
+}
+
+#[test]
+fn hits_say_which_mesh_and_optionally_the_normal() {
+    #[derive(npyz::Deserialize)]
+    struct Rec {
+        t: f32,
+        prim: u32,
+        geom: u32,
+        #[allow(dead_code)]
+        u: f32,
+        #[allow(dead_code)]
+        v: f32,
+        ng: [f32; 3],
+    }
+    let d = tmp();
+    let (rays, hits, plain) = (
+        p(d.path(), "r.npy"),
+        p(d.path(), "h.npy"),
+        p(d.path(), "p.npy"),
+    );
+    ok(&[
+        "rays", "camera", "cornell", "--width", "32", "--height", "32", "--out", &rays,
+    ]);
+    ok(&[
+        "trace",
+        "cornell",
+        "--rays",
+        &rays,
+        "--tracer",
+        "bvh",
+        "--out",
+        &hits,
+        "--normals",
+    ]);
+    let scene = raysift::scene::procedural::open("cornell").unwrap();
+    let recs: Vec<Rec> = npyz::NpyFile::new(std::fs::File::open(&hits).unwrap())
+        .unwrap()
+        .into_vec()
+        .unwrap();
+    assert_eq!(recs.len(), 32 * 32);
+    let mut meshes_hit = std::collections::BTreeSet::new();
+    for r in &recs {
+        if r.prim == u32::MAX {
+            assert_eq!((r.geom, r.ng), (u32::MAX, [0.0; 3]));
+            assert!(r.t.is_infinite());
+            continue;
+        }
+        assert!(scene
+            .mesh_prims(r.geom as usize)
+            .contains(&(r.prim as usize)));
+        let n = glam::Vec3::from_array(r.ng);
+        assert!((n.length() - 1.0).abs() < 1e-5, "{n}");
+        assert_eq!(n, scene.normal(r.prim as usize));
+        meshes_hit.insert(r.geom);
+    }
+    assert!(meshes_hit.len() > 3, "{meshes_hit:?}");
+    // Without --normals: geom but no ng; both are read back by `rays shadow`.
+    ok(&[
+        "trace", "cornell", "--rays", &rays, "--tracer", "bvh", "--out", &plain,
+    ]);
+    let header = String::from_utf8_lossy(&std::fs::read(&plain).unwrap()[..128]).to_string();
+    assert!(
+        header.contains("'geom'") && !header.contains("'ng'"),
+        "{header}"
+    );
+    for h in [&hits, &plain] {
+        ok(&[
+            "rays",
+            "shadow",
+            "cornell",
+            "--rays",
+            &rays,
+            "--hits",
+            h,
+            "--light",
+            "0,1.9,0",
+            "--out",
+            &p(d.path(), "s.npy"),
+        ]);
+    }
+    let o = raysift(&[
+        "trace",
+        "cornell",
+        "--rays",
+        &rays,
+        "--out",
+        &hits,
+        "--normals",
+        "--occlusion",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "--normals has no meaning for occlusion"
+    );
 }
 
 #[test]
@@ -450,8 +682,24 @@ fn animate_writes_frames_and_reports_per_frame_times() {
             .all(|f| f["trace_ms"].as_f64().unwrap() > 0.0 && f["prepare_ms"].is_number()));
         // The geometry changes between frames, so the hit counts do too (explode spreads out).
         assert!(d.path().join("frames/frame_0002.png").exists());
+        // Each frame says what changed since the last: everything at first, then explode
+        // deforms its one mesh and spin-parts moves every part rigidly.
+        let meshes = v["meshes"].as_u64().unwrap();
+        assert_eq!(frames[0]["change"], "all");
+        for f in &frames[1..] {
+            assert_eq!(f["change"], "meshes");
+            let (moved, deformed) = (
+                f["moved"].as_u64().unwrap(),
+                f["deformed"].as_u64().unwrap(),
+            );
+            match motion {
+                "explode" => assert_eq!((moved, deformed), (0, 1)),
+                _ => assert_eq!((moved, deformed), (meshes, 0)),
+            }
+        }
+        assert!(v["mean_frame_ms"].as_f64().unwrap() > 0.0);
     }
-    fails(
+    usage_fails(
         &["animate", "sphere:300", "--motion", "wobble", "--out", &out],
         "wobble",
     );
@@ -489,4 +737,476 @@ fn path_tracing_reports_every_bounce() {
         assert_eq!(b[k]["rays"], b[k - 1]["hits"]);
     }
     assert!(std::fs::metadata(&out).unwrap().len() > 100);
+}
+
+// ---- What a new user ran into (issue 12, item 6): each of these failed before the fix.
+
+#[test]
+fn usage_errors_print_claps_whole_message() {
+    // The missing argument is named, not just "the following required arguments...".
+    let e = usage_fails(&["trace", "teapot.obj"], "--rays");
+    assert!(e.contains("required"), "{e}");
+    // The allowed values are listed.
+    let e = usage_fails(&["render", "--integrator", "foo"], "foo");
+    assert!(e.contains("raycast") && e.contains("path"), "{e}");
+    let e = usage_fails(&["render", "--shade", "flat"], "flat");
+    assert!(e.contains("diffuse") && e.contains("depth"), "{e}");
+    let e = usage_fails(&["animate", "--motion", "wobble"], "wobble");
+    assert!(e.contains("explode") && e.contains("spin-parts"), "{e}");
+}
+
+#[test]
+fn no_arguments_print_the_help() {
+    let o = raysift(&[]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !err.contains("error: Batch"),
+        "the description is not an error: {err}"
+    );
+    for cmd in [
+        "Usage:", "info", "rays", "trace", "render", "animate", "export", "tracers",
+    ] {
+        assert!(err.contains(cmd), "help should list {cmd}: {err}");
+    }
+}
+
+#[test]
+fn images_other_than_png_are_refused_before_any_work() {
+    let d = tmp();
+    for name in ["x.exr", "x.jpg", "x.PNG.tiff", "noext"] {
+        let out = p(d.path(), name);
+        // The scene does not exist: the image path is checked first.
+        let e = fails(
+            &["render", &p(d.path(), "missing.obj"), "--out", &out],
+            name,
+        );
+        assert!(e.contains("PNG"), "{e}");
+        let e = fails(
+            &["render", "sphere:80", "--heatmap", "nodes", "--out", &out],
+            name,
+        );
+        assert!(e.contains("PNG"), "{e}");
+        assert!(!d.path().join(name).exists(), "{name} written");
+    }
+    // Upper case is still PNG.
+    let out = p(d.path(), "X.PNG");
+    ok(&[
+        "render",
+        "sphere:80",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        &out,
+    ]);
+    assert_eq!(&std::fs::read(&out).unwrap()[1..4], b"PNG");
+}
+
+#[test]
+fn spp_bounces_shade_and_light_belong_to_their_integrator() {
+    let d = tmp();
+    let out = p(d.path(), "x.png");
+    let base = [
+        "render",
+        "sphere:80",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        &out,
+    ];
+    let with = |extra: &[&'static str]| {
+        let mut v = base.to_vec();
+        v.extend_from_slice(extra);
+        v
+    };
+    usage_fails(&with(&["--integrator", "path", "--spp", "0"]), "--spp");
+    fails(&with(&["--spp", "2"]), "--spp");
+    fails(&with(&["--bounces", "2"]), "--bounces");
+    fails(
+        &with(&["--integrator", "path", "--shade", "depth"]),
+        "--shade",
+    );
+    fails(
+        &with(&["--integrator", "path", "--light", "1,2,3"]),
+        "--light",
+    );
+    fails(&with(&["--shade", "normal", "--light", "1,2,3"]), "--light");
+    assert!(!d.path().join("x.png").exists());
+    ok(&with(&[
+        "--integrator",
+        "path",
+        "--spp",
+        "1",
+        "--bounces",
+        "1",
+    ]));
+    ok(&with(&["--shade", "diffuse", "--light", "-1,2,3"]));
+}
+
+#[test]
+fn animate_without_images_needs_no_out() {
+    let o = ok(&[
+        "animate",
+        "sphere:200",
+        "--frames",
+        "2",
+        "--no-images",
+        "--tracer",
+        "naive",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--json",
+    ]);
+    assert_eq!(json(&o)["frames"].as_array().unwrap().len(), 2);
+    // Images still need a folder.
+    usage_fails(&["animate", "sphere:200", "--frames", "2"], "--out");
+}
+
+#[test]
+fn trace_without_out_says_it_wrote_nothing() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:80",
+        "--count",
+        "50",
+        "--out",
+        &rays,
+    ]);
+    for extra in [&[][..], &["--json"], &["--occlusion"]] {
+        let mut args = vec!["trace", "sphere:80", "--rays", &rays, "--tracer", "naive"];
+        args.extend_from_slice(extra);
+        let err = String::from_utf8(ok(&args).stderr).unwrap();
+        assert!(err.contains("no --out") && err.contains("written"), "{err}");
+    }
+    let err = String::from_utf8(
+        ok(&[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &rays,
+            "--out",
+            &p(d.path(), "h.npy"),
+        ])
+        .stderr,
+    )
+    .unwrap();
+    assert!(!err.contains("no --out"), "{err}");
+}
+
+#[test]
+fn errors_name_the_users_path_never_a_temporary_file() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:80",
+        "--count",
+        "10",
+        "--out",
+        &rays,
+    ]);
+    let missing = d.path().join("no-such-folder");
+    let png = missing.join("x.png").display().to_string();
+    let hits = missing.join("h.npy").display().to_string();
+    for (args, name) in [
+        (
+            vec![
+                "render",
+                "sphere:80",
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--out",
+                &png,
+            ],
+            "x.png",
+        ),
+        (
+            vec!["trace", "sphere:80", "--rays", &rays, "--out", &hits],
+            "h.npy",
+        ),
+        (vec!["export", "sphere:80", "--out", &hits], "h.npy"),
+    ] {
+        let e = fails(&args, name);
+        assert!(
+            e.contains("no-such-folder") && !e.contains(".raysift-"),
+            "{e}"
+        );
+    }
+    // A folder given as the output file.
+    let dir = d.path().display().to_string();
+    let e = fails(
+        &["trace", "sphere:80", "--rays", &rays, "--out", &dir],
+        "folder",
+    );
+    assert!(!e.contains(".raysift-"), "{e}");
+}
+
+#[test]
+fn float64_rays_are_converted() {
+    let d = tmp();
+    let (r32, r64) = (p(d.path(), "r32.npy"), p(d.path(), "r64.npy"));
+    ok(&[
+        "rays",
+        "camera",
+        "sphere:500",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--out",
+        &r32,
+    ]);
+    // The same rays as numpy writes them by default: float64, here flat (N, 8).
+    let f = npyz::NpyFile::new(std::fs::File::open(&r32).unwrap()).unwrap();
+    let v: Vec<f32> = f.into_vec().unwrap();
+    let mut w = {
+        use npyz::WriterBuilder;
+        npyz::WriteOptions::<f64>::new()
+            .default_dtype()
+            .shape(&[(v.len() / 8) as u64, 8])
+            .writer(std::fs::File::create(&r64).unwrap())
+            .begin_nd()
+            .unwrap()
+    };
+    w.extend(v.iter().map(|&x| x as f64)).unwrap();
+    w.finish().unwrap();
+    let (h32, h64) = (p(d.path(), "h32.npy"), p(d.path(), "h64.npy"));
+    for (r, h) in [(&r32, &h32), (&r64, &h64)] {
+        ok(&[
+            "trace",
+            "sphere:500",
+            "--rays",
+            r,
+            "--tracer",
+            "bvh",
+            "--out",
+            h,
+        ]);
+    }
+    assert!(std::fs::read(&h32).unwrap() == std::fs::read(&h64).unwrap());
+}
+
+#[test]
+fn unknown_options_list_the_valid_ones() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:80",
+        "--count",
+        "10",
+        "--out",
+        &rays,
+    ]);
+    for (tracer, valid) in [("bvh", "max_leaf"), ("dacrt", "r_limit")] {
+        let e = fails(
+            &[
+                "trace",
+                "sphere:80",
+                "--rays",
+                &rays,
+                "--tracer",
+                tracer,
+                "--opt",
+                "nope=1",
+            ],
+            "nope",
+        );
+        assert!(e.contains(valid) && e.contains("tracers --verbose"), "{e}");
+    }
+    fails(
+        &[
+            "trace",
+            "sphere:80",
+            "--rays",
+            &rays,
+            "--tracer",
+            "naive",
+            "--opt",
+            "nope=1",
+        ],
+        "takes no options",
+    );
+}
+
+/// Width and height of a PNG, from its IHDR chunk.
+fn png_size(path: &str) -> (u32, u32) {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[1..4], b"PNG");
+    let be = |k: usize| u32::from_be_bytes(b[k..k + 4].try_into().unwrap());
+    (be(16), be(20))
+}
+
+#[test]
+fn heatmaps_draw_per_ray_cost_with_a_scale() {
+    let d = tmp();
+    let (w, h) = (48u32, 32u32);
+    let (ws, hs) = (w.to_string(), h.to_string());
+    let heat = |tracer: &str, kind: &str, out: &str| {
+        let o = ok(&[
+            "render",
+            "sphere:400",
+            "--tracer",
+            tracer,
+            "--heatmap",
+            kind,
+            "--width",
+            &ws,
+            "--height",
+            &hs,
+            "--out",
+            out,
+            "--json",
+        ]);
+        (json(&o), String::from_utf8(o.stderr).unwrap())
+    };
+    // Brute force tests every triangle for every ray.
+    let out = p(d.path(), "naive.png");
+    let (v, err) = heat("naive", "triangles", &out);
+    let tris = v["triangles"].as_u64().unwrap();
+    assert_eq!(v["scale"]["min"], tris);
+    assert_eq!(v["scale"]["max"], tris);
+    assert_eq!(v["scale"]["mean"].as_f64().unwrap(), tris as f64);
+    assert!(err.contains(&format!("min {tris}, max {tris}")), "{err}");
+    // The BVH does more work where the sphere is than around it; the image is the view plus
+    // the bar, as the report says.
+    let out = p(d.path(), "bvh.png");
+    let (v, err) = heat("bvh", "nodes", &out);
+    let (min, max) = (
+        v["scale"]["min"].as_u64().unwrap(),
+        v["scale"]["max"].as_u64().unwrap(),
+    );
+    assert!(min < max, "{v}");
+    assert!(
+        err.contains("nodes per ray") && err.contains("mean"),
+        "{err}"
+    );
+    let (iw, ih) = png_size(&out);
+    assert_eq!((iw, ih), (v["image_width"].as_u64().unwrap() as u32, h));
+    assert!(iw > w, "a colour bar beside the {w}-pixel view: {iw}");
+    assert_eq!(v["width"], w);
+    assert_eq!(v["rays"], (w * h) as u64);
+    assert!(v["stats"]["work"]["nodes"].as_u64().unwrap() > 0);
+    // Every tracer draws (one that records no cost yet draws a scale of 0 to 0).
+    for t in tracer_names() {
+        heat(&t, "tests", &p(d.path(), &format!("{t}.png")));
+    }
+    // A heatmap shades nothing and traces no paths.
+    let out = p(d.path(), "x.png");
+    fails(
+        &[
+            "render",
+            "--heatmap",
+            "nodes",
+            "--shade",
+            "depth",
+            "--out",
+            &out,
+        ],
+        "--shade",
+    );
+    fails(
+        &[
+            "render",
+            "--heatmap",
+            "nodes",
+            "--integrator",
+            "path",
+            "--out",
+            &out,
+        ],
+        "path",
+    );
+    usage_fails(
+        &["render", "--heatmap", "bytes", "--out", &out],
+        "triangles",
+    );
+}
+
+#[test]
+fn trace_json_times_once_medians_at_the_top_counters_under_stats() {
+    let d = tmp();
+    let rays = p(d.path(), "rays.npy");
+    ok(&[
+        "rays",
+        "random",
+        "sphere:500",
+        "--count",
+        "300",
+        "--out",
+        &rays,
+    ]);
+    let o = ok(&[
+        "trace",
+        "sphere:500",
+        "--rays",
+        &rays,
+        "--tracer",
+        "bvh",
+        "--repeat",
+        "3",
+        "--json",
+    ]);
+    let v = json(&o);
+    // The keys bench/ reads.
+    for k in [
+        "scene",
+        "triangles",
+        "tracer",
+        "rays",
+        "threads",
+        "occlusion",
+        "prepare_ms",
+        "trace_ms",
+        "mrays_per_s",
+        "hits",
+        "tracer_bytes",
+        "bytes_per_triangle",
+        "prepare_ms_runs",
+        "trace_ms_runs",
+        "stats",
+    ] {
+        assert!(!v[k].is_null(), "{k} missing: {v}");
+    }
+    let runs = |k: &str| -> Vec<f64> {
+        let mut r: Vec<f64> = v[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        r.sort_by(f64::total_cmp);
+        r
+    };
+    assert_eq!(
+        v["trace_ms"].as_f64().unwrap(),
+        runs("trace_ms_runs")[1],
+        "the median"
+    );
+    assert_eq!(
+        v["prepare_ms"].as_f64().unwrap(),
+        runs("prepare_ms_runs")[1]
+    );
+    // No second trace_ms: stats has the last run's counters only.
+    let st = v["stats"].as_object().unwrap();
+    assert!(
+        !st.contains_key("trace_ms") && !st.contains_key("prepare_ms"),
+        "{v}"
+    );
+    assert_eq!(st["rays"], 300);
+    assert!(st["work"]["ray_tri"].as_u64().unwrap() > 0);
+    assert!(st["built"]["nodes"].as_u64().unwrap() > 0);
 }

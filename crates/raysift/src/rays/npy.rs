@@ -1,23 +1,29 @@
 //! The numpy file formats (README, "Formats"):
 //!
 //! - `rays.npy`: float32, shape `(N, 6)` `[ox, oy, oz, dx, dy, dz]` (then `tmin = 0`, `tmax = +inf`)
-//!   or `(N, 8)` `[..., tmin, tmax]`, C order, either byte order. Origins and directions must be
+//!   or `(N, 8)` `[..., tmin, tmax]`, C order, either byte order; float64 (numpy's default) is
+//!   converted to float32 once, on reading ([`read_rays`]). Origins and directions must be
 //!   finite, directions non-zero, `tmin` not NaN. Camera rays may also be image-shaped,
 //!   `(H, W, 6)` or `(H, W, 8)` (pixel `(i, j)` at row `j`, column `i`); [`write_rays`] writes
 //!   pinhole batches that way so the image size survives the file. [`read_rays`] recovers the
 //!   layout hint ([`RayBatch::detect_layout`]): pinhole for image-shaped rays from one point,
 //!   to-a-point for shadow segments.
 //! - `hits.npy`: a structured array of N records `t <f4` (+inf on miss), `prim <u4`
-//!   (4294967295 on miss), `u <f4`, `v <f4`.
+//!   (4294967295 on miss), `geom <u4` (the mesh holding `prim`, 4294967295 on miss), `u <f4`,
+//!   `v <f4`, and with normals asked for `ng <f4 (3,)` (the unit geometric normal, zeros on
+//!   miss) ([`write_hits`]). [`read_hits`] reads these and the older files without `geom`.
 //! - occlusion: `uint8` array of N (1 = occluded).
 
 use super::{HitBatch, Ray, RayBatch, RayLayout};
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
+use crate::scene::Scene;
 use npyz::WriterBuilder;
+use std::io::Read;
 use std::path::Path;
 
-/// One record of `hits.npy`.
+/// One record of a `hits.npy` without the mesh id (as raysift wrote them before `geom`, and as
+/// other programs may still write them): read by [`read_hits`], never written.
 #[derive(
     npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq,
 )]
@@ -30,6 +36,42 @@ pub struct HitRecord {
     pub u: f32,
     /// Barycentric v.
     pub v: f32,
+}
+
+/// One record of `hits.npy` as [`write_hits`] writes it: the hit and the mesh it is on.
+#[derive(
+    npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq,
+)]
+pub struct GeomHitRecord {
+    /// Hit distance.
+    pub t: f32,
+    /// Triangle id.
+    pub prim: u32,
+    /// Mesh (geometry) id of the triangle ([`Scene::geometry_of`]).
+    pub geom: u32,
+    /// Barycentric u.
+    pub u: f32,
+    /// Barycentric v.
+    pub v: f32,
+}
+
+/// One record of `hits.npy` with the geometric normal (`write_hits(.., normals: true)`).
+#[derive(
+    npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq,
+)]
+pub struct NormalHitRecord {
+    /// Hit distance.
+    pub t: f32,
+    /// Triangle id.
+    pub prim: u32,
+    /// Mesh (geometry) id of the triangle.
+    pub geom: u32,
+    /// Barycentric u.
+    pub u: f32,
+    /// Barycentric v.
+    pub v: f32,
+    /// Unit geometric normal of the triangle in world space ([`Scene::normal`]; zeros on miss).
+    pub ng: [f32; 3],
 }
 
 fn open_npy(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>> {
@@ -55,11 +97,15 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     let name = path.display().to_string();
     let npy = open_npy(path)?;
     let shape = npy.shape().to_vec();
-    if !is_plain(&npy.dtype(), 'f', 4) {
+    let float64 = is_plain(&npy.dtype(), 'f', 8);
+    if !float64 && !is_plain(&npy.dtype(), 'f', 4) {
         return Err(Error::parse(
             &name,
             "header",
-            format!("dtype is {}, expected float32 ('<f4')", npy.dtype().descr()),
+            format!(
+                "dtype is {}, expected float32 ('<f4') or float64 ('<f8')",
+                npy.dtype().descr()
+            ),
         ));
     }
     let cols = shape.last().copied().unwrap_or(0);
@@ -93,13 +139,17 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
         .try_fold(1usize, |a, &x| a.checked_mul(x as usize))
         .ok_or_else(|| Error::parse(&name, "header", format!("shape {shape:?} too large")))?;
     let w = cols as usize;
-    let data: Vec<f32> = npy.into_vec().map_err(|e| {
-        Error::parse(
-            &name,
-            "data",
-            format!("expected {n} rows of {w} float32 values: {e}"),
-        )
-    })?;
+    let data: Vec<f32> = if float64 {
+        f64_ray_values(npy, &name, n, w)?
+    } else {
+        npy.into_vec().map_err(|e| {
+            Error::parse(
+                &name,
+                "data",
+                format!("expected {n} rows of {w} float32 values: {e}"),
+            )
+        })?
+    };
     if data.len() != n * w {
         return Err(Error::parse(
             &name,
@@ -143,6 +193,39 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     Ok(rays)
 }
 
+/// The values of a float64 rays file, converted once to float32 (round to nearest: raysift
+/// traces in float32, as Embree does). A finite value beyond float32's range is an error, since it
+/// would become infinite; NaN and infinities pass through to [`read_rays`]'s checks.
+fn f64_ray_values<R: Read>(
+    npy: npyz::NpyFile<R>,
+    name: &str,
+    n: usize,
+    w: usize,
+) -> Result<Vec<f32>> {
+    let data: Vec<f64> = npy.into_vec().map_err(|e| {
+        Error::parse(
+            name,
+            "data",
+            format!("expected {n} rows of {w} float64 values: {e}"),
+        )
+    })?;
+    data.iter()
+        .enumerate()
+        .map(|(k, &x)| {
+            let y = x as f32;
+            if x.is_finite() && !y.is_finite() {
+                Err(Error::parse(
+                    name,
+                    format!("ray {}", k / w),
+                    format!("value {x} is beyond float32's range"),
+                ))
+            } else {
+                Ok(y)
+            }
+        })
+        .collect()
+}
+
 /// Writes rays as float32 `(N, 8)`, or `(H, W, 8)` for pinhole batches (so readers recover the
 /// image size).
 pub fn write_rays(path: impl AsRef<Path>, rays: &RayBatch) -> Result<()> {
@@ -175,53 +258,106 @@ pub fn write_rays(path: impl AsRef<Path>, rays: &RayBatch) -> Result<()> {
     })
 }
 
-/// Writes closest hits as the structured `hits.npy`.
-pub fn write_hits(path: impl AsRef<Path>, hits: &HitBatch) -> Result<()> {
-    let n = hits.len();
-    write_atomic(path.as_ref(), |w| {
-        let mut out = npyz::WriteOptions::<HitRecord>::new()
+/// Writes closest hits as the structured `hits.npy`: `t prim geom u v` per ray, and `ng` (the
+/// unit geometric normal) when `normals` is set. `scene` is the scene the hits are of (for the
+/// mesh ids and normals).
+pub fn write_hits(
+    path: impl AsRef<Path>,
+    hits: &HitBatch,
+    scene: &Scene,
+    normals: bool,
+) -> Result<()> {
+    let geom = |i: usize| scene.geometry_of(hits.prim[i]);
+    if normals {
+        write_records(path.as_ref(), hits.len(), |i| NormalHitRecord {
+            t: hits.t[i],
+            prim: hits.prim[i],
+            geom: geom(i),
+            u: hits.u[i],
+            v: hits.v[i],
+            ng: if hits.is_hit(i) {
+                scene.normal(hits.prim[i] as usize).to_array()
+            } else {
+                [0.0; 3]
+            },
+        })
+    } else {
+        write_records(path.as_ref(), hits.len(), |i| GeomHitRecord {
+            t: hits.t[i],
+            prim: hits.prim[i],
+            geom: geom(i),
+            u: hits.u[i],
+            v: hits.v[i],
+        })
+    }
+}
+
+/// Writes `n` records `record(0..n)` as a 1-d structured array.
+fn write_records<T: npyz::AutoSerialize>(
+    path: &Path,
+    n: usize,
+    record: impl Fn(usize) -> T,
+) -> Result<()> {
+    write_atomic(path, |w| {
+        let mut out = npyz::WriteOptions::<T>::new()
             .default_dtype()
             .shape(&[n as u64])
             .writer(w)
             .begin_nd()?;
         for i in 0..n {
-            out.push(&HitRecord {
-                t: hits.t[i],
-                prim: hits.prim[i],
-                u: hits.u[i],
-                v: hits.v[i],
-            })?;
+            out.push(&record(i))?;
         }
         out.finish()
     })
 }
 
-/// Reads a `hits.npy` file.
+/// Reads a `hits.npy` file: records `t prim geom u v` with or without `ng`, or the older
+/// `t prim u v`. The mesh ids and normals are not kept (the scene gives them again).
 pub fn read_hits(path: impl AsRef<Path>) -> Result<HitBatch> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
-    let expected = <HitRecord as npyz::AutoSerialize>::default_dtype();
-    if npy.dtype() != expected {
-        return Err(Error::parse(
-            &name,
+    hits_from(open_npy(path)?, &name)
+}
+
+fn hits_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<HitBatch> {
+    use npyz::AutoSerialize;
+    let dtype = npy.dtype();
+    if dtype == GeomHitRecord::default_dtype() {
+        hit_records(npy, name, |r: &GeomHitRecord| (r.t, r.prim, r.u, r.v))
+    } else if dtype == NormalHitRecord::default_dtype() {
+        hit_records(npy, name, |r: &NormalHitRecord| (r.t, r.prim, r.u, r.v))
+    } else if dtype == HitRecord::default_dtype() {
+        hit_records(npy, name, |r: &HitRecord| (r.t, r.prim, r.u, r.v))
+    } else {
+        Err(Error::parse(
+            name,
             "header",
             format!(
-                "dtype is {}, expected {}",
-                npy.dtype().descr(),
-                expected.descr()
+                "dtype is {}, expected {} (optionally with ng), or {}",
+                dtype.descr(),
+                GeomHitRecord::default_dtype().descr(),
+                HitRecord::default_dtype().descr()
             ),
-        ));
+        ))
     }
-    let recs: Vec<HitRecord> = npy
+}
+
+/// The `(t, prim, u, v)` of every record of type `T`.
+fn hit_records<T: npyz::Deserialize, R: Read>(
+    npy: npyz::NpyFile<R>,
+    name: &str,
+    fields: impl Fn(&T) -> (f32, u32, f32, f32),
+) -> Result<HitBatch> {
+    let recs: Vec<T> = npy
         .into_vec()
-        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
+        .map_err(|e| Error::parse(name, "data", e.to_string()))?;
     let mut h = HitBatch::new(0);
-    for r in recs {
-        h.t.push(r.t);
-        h.prim.push(r.prim);
-        h.u.push(r.u);
-        h.v.push(r.v);
+    for r in &recs {
+        let (t, prim, u, v) = fields(r);
+        h.t.push(t);
+        h.prim.push(prim);
+        h.u.push(u);
+        h.v.push(v);
     }
     Ok(h)
 }
@@ -292,7 +428,10 @@ mod tests {
         hits.prim[1] = 7;
         hits.u[1] = 0.25;
         let p = dir.path().join("h.npy");
-        write_hits(&p, &hits).unwrap();
+        let scene = crate::scene::procedural::open("cornell").unwrap();
+        write_hits(&p, &hits, &scene, false).unwrap();
+        assert_eq!(read_hits(&p).unwrap(), hits);
+        write_hits(&p, &hits, &scene, true).unwrap();
         assert_eq!(read_hits(&p).unwrap(), hits);
         let p = dir.path().join("o.npy");
         write_occlusion(&p, &[true, false, true]).unwrap();
@@ -301,6 +440,87 @@ mod tests {
         let p = dir.path().join("e.npy");
         write_rays(&p, &RayBatch::default()).unwrap();
         assert_eq!(read_rays(&p).unwrap().len(), 0);
+    }
+
+    #[test]
+    fn hits_say_which_mesh_and_normal() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = crate::scene::procedural::open("cornell").unwrap();
+        assert!(scene.meshes().len() > 1);
+        let last = scene.len() as u32 - 1;
+        let mut hits = HitBatch::new(3);
+        for (i, prim) in [(0, 0), (2, last)] {
+            hits.t[i] = 1.0;
+            hits.prim[i] = prim;
+        }
+        let p = dir.path().join("h.npy");
+        write_hits(&p, &hits, &scene, true).unwrap();
+        let recs: Vec<NormalHitRecord> = npyz::NpyFile::new(std::fs::File::open(&p).unwrap())
+            .unwrap()
+            .into_vec()
+            .unwrap();
+        assert_eq!(recs[0].geom, 0);
+        assert_eq!(recs[1].geom, u32::MAX, "a miss has no mesh");
+        assert_eq!(recs[2].geom as usize, scene.meshes().len() - 1);
+        assert_eq!(recs[1].ng, [0.0; 3]);
+        assert_eq!(recs[2].ng, scene.normal(last as usize).to_array());
+        // Without normals the record has no ng; files of the older layout still read.
+        write_hits(&p, &hits, &scene, false).unwrap();
+        let header = std::fs::read(&p).unwrap();
+        let text = String::from_utf8_lossy(&header[..128]);
+        assert!(text.contains("'geom'") && !text.contains("'ng'"), "{text}");
+        let mut w = npyz::WriteOptions::<HitRecord>::new()
+            .default_dtype()
+            .shape(&[3])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap();
+        for i in 0..3 {
+            w.push(&HitRecord {
+                t: hits.t[i],
+                prim: hits.prim[i],
+                u: hits.u[i],
+                v: hits.v[i],
+            })
+            .unwrap();
+        }
+        w.finish().unwrap();
+        assert_eq!(read_hits(&p).unwrap(), hits);
+    }
+
+    #[test]
+    fn float64_rays_are_converted_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("r64.npy");
+        let rows: [[f64; 8]; 2] = [
+            [0.1, 0.2, 3.0, 0.0, 0.0, -1.0, 0.0, f64::INFINITY],
+            [1.0, 1.0 / 3.0, 2.0, 0.5, 0.25, -1.0, 0.001, 7.5],
+        ];
+        let mut w = npyz::WriteOptions::<f64>::new()
+            .default_dtype()
+            .shape(&[2, 8])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend(rows.iter().flatten().copied()).unwrap();
+        w.finish().unwrap();
+        let r = read_rays(&p).unwrap();
+        assert_eq!(r.len(), 2);
+        assert_eq!(r.oy[1], (1.0f64 / 3.0) as f32);
+        assert_eq!(r.tmin[1], 0.001f64 as f32);
+        assert_eq!(r.tmax[0], f32::INFINITY);
+        // A finite value float32 cannot hold is refused, with its ray.
+        let mut w = npyz::WriteOptions::<f64>::new()
+            .default_dtype()
+            .shape(&[2, 6])
+            .writer(std::fs::File::create(&p).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1e300, 0.0, 0.0, 1.0, 0.0, 0.0])
+            .unwrap();
+        w.finish().unwrap();
+        let e = read_rays(&p).unwrap_err().to_string();
+        assert!(e.contains("ray 1") && e.contains("float32"), "{e}");
     }
 
     #[test]
@@ -357,8 +577,8 @@ mod tests {
     fn rejects_bad_files_with_place() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("bad.npy");
-        // Wrong dtype.
-        npyz::WriteOptions::<f64>::new()
+        // Wrong dtype (float64 is converted; integers are not rays).
+        npyz::WriteOptions::<i32>::new()
             .default_dtype()
             .shape(&[1, 6])
             .writer(std::fs::File::create(&p).unwrap())

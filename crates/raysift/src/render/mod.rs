@@ -4,6 +4,7 @@
 //! light with hard shadows traced as one any-hit batch (the "Conic + 1 light" workload of Mora 2011,
 //! Fig. 8). Later integrators (distribution, path tracing) live beside it.
 
+pub mod heatmap;
 pub mod path;
 
 use crate::error::{Error, Result};

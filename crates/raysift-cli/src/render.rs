@@ -1,0 +1,303 @@
+//! `raysift render`: an image by ray casting (normal, depth or diffuse shading with shadows),
+//! diffuse path tracing, or a heatmap of the tracer's per-ray cost.
+
+use crate::args::{camera_for, check_png, make_tracer, open_scene_or_default, parse_vec3};
+use crate::args::{TracerArgs, ViewArgs};
+use crate::progress::spinner;
+use crate::report::{mrays_per_s, print_json, BounceReport, Counts, PassReport};
+use crate::report::{HeatmapReport, PathReport, RenderReport};
+use anyhow::{bail, Result};
+use clap::Args;
+use glam::Vec3;
+use raysift::render::heatmap::{self, CostKind};
+use raysift::render::{self, Shade};
+use raysift::Stats;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Scene file or generator; the embedded bunny when omitted.
+    scene: Option<String>,
+    #[command(flatten)]
+    view: ViewArgs,
+    /// Point light x,y,z for diffuse shading (default: above and right of the eye).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    light: Option<Vec3>,
+    /// Ray casting's shading: diffuse (with shadows; the default), normal or depth.
+    #[arg(long, value_parser = shade_parser())]
+    shade: Option<Shade>,
+    /// Integrator: raycast (one ray per pixel, shaded) or path (diffuse path tracing under a sky).
+    #[arg(long, value_enum, default_value_t = Integrator::Raycast)]
+    integrator: Integrator,
+    /// Path tracing: samples per pixel, at least 1 [default: 4].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
+    #[arg(long)]
+    bounces: Option<u32>,
+    /// Draw the tracer's per-ray cost instead of shading: nodes entered, tests, or ray/triangle
+    /// tests, in false colour with a colour bar (the scale is printed too).
+    #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
+    heatmap: Option<CostKind>,
+    /// Output PNG.
+    #[arg(long, default_value = "raysift.png")]
+    out: PathBuf,
+    /// Print the work counters to stderr.
+    #[arg(long)]
+    stats: bool,
+    #[command(flatten)]
+    pub tracer: TracerArgs,
+}
+
+/// How `render` makes its image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Integrator {
+    /// One ray per pixel, shaded (`--shade`).
+    Raycast,
+    /// Diffuse path tracing under a sky, one batch per bounce.
+    Path,
+}
+
+/// `--shade`'s parser: the allowed names listed in `--help` and in the error.
+pub fn shade_parser() -> impl clap::builder::TypedValueParser<Value = Shade> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(["diffuse", "normal", "depth"])
+        .map(|s| s.parse::<Shade>().expect("a listed shading"))
+}
+
+/// `--heatmap`'s parser: the allowed names listed in `--help` and in the error.
+fn heatmap_parser() -> impl clap::builder::TypedValueParser<Value = CostKind> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(CostKind::ALL.map(CostKind::name))
+        .map(|s| s.parse::<CostKind>().expect("a listed count"))
+}
+
+/// Refuses arguments the chosen integrator would ignore, and an image it cannot write, before any
+/// work is done.
+fn check(a: &RenderArgs) -> Result<()> {
+    check_png(&a.out)?;
+    let path = a.integrator == Integrator::Path;
+    if a.heatmap.is_some() {
+        for (given, flag) in [
+            (path, "--integrator path"),
+            (a.shade.is_some(), "--shade"),
+            (a.light.is_some(), "--light"),
+        ] {
+            if given {
+                bail!("--heatmap draws the camera rays' cost; it takes no {flag}");
+            }
+        }
+    }
+    if path {
+        if a.shade.is_some() {
+            bail!("--shade applies to ray casting, not to --integrator path (which shades diffusely under a sky)");
+        }
+        if a.light.is_some() {
+            bail!("--light applies to ray casting with --shade diffuse, not to --integrator path (lit by its sky)");
+        }
+    } else {
+        for (given, flag) in [
+            (a.spp.is_some(), "--spp"),
+            (a.bounces.is_some(), "--bounces"),
+        ] {
+            if given {
+                bail!("{flag} applies to --integrator path only");
+            }
+        }
+        if a.light.is_some() && a.shade.is_some_and(|s| s != Shade::Diffuse) {
+            bail!("--light applies to --shade diffuse only");
+        }
+    }
+    Ok(())
+}
+
+/// The CLI name of a shading.
+pub fn shade_name(s: Shade) -> &'static str {
+    match s {
+        Shade::Normal => "normal",
+        Shade::Depth => "depth",
+        Shade::Diffuse => "diffuse",
+    }
+}
+
+pub fn run(a: &RenderArgs) -> Result<()> {
+    check(a)?;
+    let mut tracer = make_tracer(&a.tracer)?;
+    let s = open_scene_or_default(a.scene.as_deref())?;
+    let cam = camera_for(&s.bounds(), &a.view)?;
+    let (w, h) = (a.view.width, a.view.height);
+    let t0 = Instant::now();
+    let pb = spinner(format!("{}: rendering {w}×{h}", tracer.name()));
+    let prep = tracer.prepare_timed(&s)?;
+    if let Some(kind) = a.heatmap {
+        let m = heatmap::heatmap(&s, tracer.as_ref(), &cam, w, h, kind)?;
+        pb.finish_and_clear();
+        m.image.save_png(&a.out)?;
+        let sc = m.scale;
+        eprintln!(
+            "{} per ray ({}): min {}, max {}, mean {:.2}; wrote {} ({w}×{h} + {} pixel colour bar)",
+            kind.name(),
+            tracer.name(),
+            sc.min,
+            sc.max,
+            sc.mean,
+            a.out.display(),
+            m.image.width - w
+        );
+        if a.tracer.json {
+            print_json(&HeatmapReport {
+                scene: s.name.clone(),
+                triangles: s.len(),
+                tracer: tracer.name(),
+                heatmap: kind.name(),
+                width: w,
+                height: h,
+                image_width: m.image.width,
+                image_height: m.image.height,
+                threads: rayon::current_num_threads(),
+                rays: m.stats.rays,
+                hits: m.hits,
+                scale: sc,
+                prepare_ms: prep.prepare_ms,
+                trace_ms: m.stats.trace_ms,
+                mrays_per_s: mrays_per_s(m.stats.rays, m.stats.trace_ms),
+                tracer_bytes: tracer.bytes(),
+                stats: Counts::of_frame(&prep, &m.stats),
+                out: a.out.display().to_string(),
+            })?;
+        }
+        if a.stats {
+            print_counters(&prep, tracer.bytes(), &[("camera", &m.stats)]);
+        }
+        return Ok(());
+    }
+    if a.integrator == Integrator::Path {
+        let defaults = render::path::PathConfig::default();
+        let cfg = render::path::PathConfig {
+            spp: a.spp.unwrap_or(defaults.spp),
+            bounces: a.bounces.unwrap_or(defaults.bounces),
+            ..defaults
+        };
+        let (img, per_depth) = render::path::path_trace(&s, tracer.as_ref(), &cam, w, h, &cfg)?;
+        pb.finish_and_clear();
+        img.save_png(&a.out)?;
+        let rays: u64 = per_depth.iter().map(|b| b.rays).sum();
+        let trace_ms: f64 = per_depth.iter().map(|b| b.stats.trace_ms).sum();
+        if a.tracer.json {
+            print_json(&PathReport {
+                scene: s.name.clone(),
+                triangles: s.len(),
+                tracer: tracer.name(),
+                integrator: "path",
+                spp: cfg.spp,
+                bounces: cfg.bounces,
+                width: w,
+                height: h,
+                threads: rayon::current_num_threads(),
+                rays,
+                prepare_ms: prep.prepare_ms,
+                trace_ms,
+                frame_ms: t0.elapsed().as_secs_f64() * 1e3,
+                mrays_per_s: mrays_per_s(rays, trace_ms),
+                tracer_bytes: tracer.bytes(),
+                prepare: Counts::of(&prep),
+                per_bounce: per_depth
+                    .iter()
+                    .map(|b| BounceReport {
+                        depth: b.depth,
+                        rays: b.rays,
+                        hits: b.hits,
+                        trace_ms: b.stats.trace_ms,
+                        mrays_per_s: b.mrays_per_s,
+                        stats: Counts::of(&b.stats),
+                    })
+                    .collect(),
+                out: a.out.display().to_string(),
+            })?;
+        } else {
+            eprintln!(
+                "wrote {} ({rays} rays in {trace_ms:.0} ms of tracing)",
+                a.out.display()
+            );
+        }
+        if a.stats {
+            for b in &per_depth {
+                eprintln!(
+                    "depth {}: {} rays, {} hits, {:.1} ms, {:.2} Mrays/s",
+                    b.depth, b.rays, b.hits, b.stats.trace_ms, b.mrays_per_s
+                );
+            }
+        }
+        return Ok(());
+    }
+    let shade = a.shade.unwrap_or_default();
+    let (img, rs) = render::raycast(&s, tracer.as_ref(), &cam, w, h, shade, a.light)?;
+    pb.finish_and_clear();
+    img.save_png(&a.out)?;
+    let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut passes = vec![("primary", &rs.primary)];
+    passes.extend(rs.shadow.as_ref().map(|s| ("shadow", s)));
+    let rays: u64 = passes.iter().map(|(_, p)| p.rays).sum();
+    let trace_ms: f64 = passes.iter().map(|(_, p)| p.trace_ms).sum();
+    if a.tracer.json {
+        print_json(&RenderReport {
+            scene: s.name.clone(),
+            triangles: s.len(),
+            tracer: tracer.name(),
+            integrator: "raycast",
+            shade: shade_name(shade),
+            width: w,
+            height: h,
+            threads: rayon::current_num_threads(),
+            rays,
+            hits: rs.hits,
+            prepare_ms: prep.prepare_ms,
+            trace_ms,
+            frame_ms,
+            mrays_per_s: mrays_per_s(rays, trace_ms),
+            tracer_bytes: tracer.bytes(),
+            prepare: Counts::of(&prep),
+            passes: passes.iter().map(|(n, p)| PassReport::of(n, p)).collect(),
+            out: a.out.display().to_string(),
+        })?;
+    } else {
+        eprintln!(
+            "wrote {} ({w}×{h}, {} of {} pixels hit) in {frame_ms:.0} ms",
+            a.out.display(),
+            rs.hits,
+            rs.primary.rays
+        );
+    }
+    if a.stats {
+        print_counters(&prep, tracer.bytes(), &passes);
+    }
+    Ok(())
+}
+
+/// `--stats`: per-pass counters on stderr, per ray and in total.
+pub fn print_counters(prep: &Stats, bytes: usize, passes: &[(&str, &Stats)]) {
+    let built: Vec<String> = prep.built.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    eprintln!(
+        "prepare: {:.1} ms, {bytes} bytes{}{}",
+        prep.prepare_ms,
+        if built.is_empty() { "" } else { "; built: " },
+        built.join(", ")
+    );
+    for (name, st) in passes {
+        let r = st.rays.max(1) as f64;
+        let per: Vec<String> = st
+            .work
+            .iter()
+            .map(|(k, v)| format!("{:.2} {k}", v as f64 / r))
+            .collect();
+        let total: Vec<String> = st.work.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        eprintln!(
+            "{name}: {} rays, {:.1} ms; per ray: {}; totals: {}",
+            st.rays,
+            st.trace_ms,
+            per.join(", "),
+            total.join(", ")
+        );
+    }
+}
