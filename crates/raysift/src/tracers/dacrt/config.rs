@@ -1,0 +1,123 @@
+//! The options (`--opt key=value`): the paper's limits (§3.2, §3.3, §3.5, §3.6) with its
+//! values where it gives them, and the switches of our extensions.
+
+use serde::Deserialize;
+
+/// Which recursion to run.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Conic packets for pinhole and shadow batches, random-ray mode otherwise.
+    #[default]
+    Auto,
+    /// Conic packets when the batch's layout allows (falls back to `ray` otherwise).
+    Packet,
+    /// Rays with early termination (front-to-back when the rays share a viewpoint).
+    Ray,
+    /// Rays with a z-buffer and no termination (§3.4).
+    Random,
+}
+
+/// Options (`key=value` on the command line).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// Naive leaf when fewer active rays than this (paper: 20). Default 20.
+    pub r_limit: usize,
+    /// Naive leaf when fewer triangles than this (paper: 16). Default 16.
+    pub p_limit: usize,
+    /// A cell with fewer than `r_limit` rays is still divided while its naive leaf would test
+    /// more than this many ray/triangle pairs (ours: the paper's rule makes a naive leaf of 19
+    /// rays and thousands of triangles, which sparse incoherent batches, such as a path
+    /// tracer's bounces off an open mesh, reach everywhere). `usize::MAX` is the paper's rule.
+    /// Default 200: 79K diffuse bounce rays off the 871K dragon, 313 → 162 ms (ray/triangle
+    /// tests 17.7M → 6.9M; 2000: 240 ms, 50: 176 ms); 1M random rays and 1M shadow rays
+    /// unchanged.
+    pub leaf_pairs: usize,
+    /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
+    /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
+    pub c_limit: usize,
+    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100;
+    /// measured slower here, see the module doc). Default 0 (never).
+    pub sat_threshold: usize,
+    /// Sampled split position for streams of at least this many triangles, spatial median
+    /// below (paper: 10 000). Default 10000.
+    pub split_sample_threshold: usize,
+    /// Sample every n-th triangle for the split position (paper: 50). Default 50.
+    pub split_sample_stride: usize,
+    /// `auto`, `packet`, `ray` or `random`. Default `auto`.
+    pub mode: Mode,
+    /// Recursion depth cap (a guard; leaves are made naive beyond it). Default 64.
+    pub max_depth: u32,
+    /// Parallel tasks, each with its own index lists over a disjoint share of the rays; 0 = the
+    /// number of rayon threads. Default 0.
+    pub tasks: usize,
+    /// Camera packets whose cone half-angle exceeds this (degrees) are traced as rays.
+    /// Default 20.
+    pub max_cone_deg: f32,
+    /// The same for shadow packets (§3.3's cones from the light), whose 64 rays are grouped by
+    /// position and can be far apart (a wide light cone reaches many cells and floods their
+    /// leaves with rays); 0 turns shadow packets off. Default 0: measured at 1024² on the
+    /// camera hits, 1° packets took 1428 ms vs 551 ms for rays on the 871K dragon, 428 vs 372
+    /// on the bunny, 658 vs 387 on a 202K dragon, and won only on Sponza (285 vs 379, light
+    /// inside the scene): a cone from the light keeps every cell along its 64 segments alive,
+    /// doubling the triangle/box tests (BENCHMARKS.md, Fig. 8).
+    pub max_shadow_cone_deg: f32,
+    /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
+    /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
+    pub flush_filter: bool,
+    /// Camera packets: bound each 8×8 tile by its pixel rectangle instead of its cone, and test
+    /// a cell by projecting it onto the image (`geom::PixelProjection`; checked per ray, the
+    /// cone test stays for cells reaching behind the eye and for batches that fail the check).
+    /// `false` runs the paper's cone test everywhere. Default true.
+    pub screen_cull: bool,
+    /// Camera batches: before dividing, drop the triangles that no pixel's ray can hit (their
+    /// projection covers none of the task's pixel centres: sub-pixel triangles between
+    /// samples; `geom::PixelProjection::triangle_may_cover`), when every ray of the task lies
+    /// on its own pixel. Default true.
+    pub pixel_cull: bool,
+    /// Camera batches (as `pixel_cull`): each triangle's pixel rectangle is kept, and the cone
+    /// recursion ends in tile leaves that test a triangle only against the live pixels of its
+    /// rectangle, with no ray list (`Task::tile_leaf`) instead of flushing the cones to rays.
+    /// Default true.
+    pub pixel_leaf: bool,
+    /// With tile leaves: a leaf when fewer active tiles than this (`c_limit`'s role; a tile
+    /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier),
+    /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
+    /// pixels; see `Task::project_triangles`). Default 256.
+    pub pixel_leaf_c_limit: usize,
+    /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
+    /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults.
+    /// Only a process's first call gains (warm calls reuse the buffers): with the thread pinned
+    /// (`--pin`, as every benchmark runs), the dragon's first frame 133 → 125 ms, the 3.5M
+    /// tile's prepare 57 → 36 ms and trace 212 → 201 ms. Unpinned, the dragon's first frame
+    /// still gained (141 → 128 ms) but the tile's first trace was 282–427 ms in 3 of 4 fresh
+    /// processes against 203–209 without, and both settings saw rare stalls of 100+ ms in fresh
+    /// processes on this (virtual) machine. Default true.
+    pub huge_pages: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            r_limit: 20,
+            p_limit: 16,
+            leaf_pairs: 200,
+            c_limit: 16,
+            sat_threshold: 0,
+            split_sample_threshold: 10_000,
+            split_sample_stride: 50,
+            mode: Mode::Auto,
+            max_depth: 64,
+            tasks: 0,
+            max_cone_deg: 20.0,
+            max_shadow_cone_deg: 0.0,
+            flush_filter: true,
+            screen_cull: true,
+            pixel_cull: true,
+            pixel_leaf: true,
+            pixel_leaf_c_limit: 256,
+            huge_pages: true,
+        }
+    }
+}
