@@ -30,9 +30,9 @@ pub struct Config {
     /// more than this many ray/triangle pairs (ours: the paper's rule makes a naive leaf of 19
     /// rays and thousands of triangles, which sparse incoherent batches, such as a path
     /// tracer's bounces off an open mesh, reach everywhere). `usize::MAX` is the paper's rule.
-    /// Default 200: 79K diffuse bounce rays off the 871K dragon, 313 → 162 ms (ray/triangle
-    /// tests 17.7M → 6.9M; 2000: 240 ms, 50: 176 ms); 1M random rays and 1M shadow rays
-    /// unchanged.
+    /// Default 200, the fastest value tried on a path tracer's bounce rays, and no change on
+    /// random or shadow rays (BENCHMARKS.md, § Fig. 9 and Fig. 10, and § DACRT design
+    /// measurements).
     pub leaf_pairs: usize,
     /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
     /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
@@ -57,11 +57,10 @@ pub struct Config {
     pub max_cone_deg: f32,
     /// The same for shadow packets (§3.3's cones from the light), whose 64 rays are grouped by
     /// position and can be far apart (a wide light cone reaches many cells and floods their
-    /// leaves with rays); 0 turns shadow packets off. Default 0: measured at 1024² on the
-    /// camera hits, 1° packets took 1428 ms vs 551 ms for rays on the 871K dragon, 428 vs 372
-    /// on the bunny, 658 vs 387 on a 202K dragon, and won only on Sponza (285 vs 379, light
-    /// inside the scene): a cone from the light keeps every cell along its 64 segments alive,
-    /// doubling the triangle/box tests (BENCHMARKS.md, Fig. 8).
+    /// leaves with rays); 0 turns shadow packets off. Default 0: a cone from the light keeps
+    /// every cell along its 64 segments alive, doubling the triangle/box tests, and 1° packets
+    /// were slower than rays on every scene measured but Sponza (light inside the scene;
+    /// BENCHMARKS.md, § Fig. 8).
     pub max_shadow_cone_deg: f32,
     /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
     /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
@@ -88,12 +87,10 @@ pub struct Config {
     pub pixel_leaf_c_limit: usize,
     /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
     /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults.
-    /// Only a process's first call gains (warm calls reuse the buffers): with the thread pinned
-    /// (`--pin`, as every benchmark runs), the dragon's first frame 133 → 125 ms, the 3.5M
-    /// tile's prepare 57 → 36 ms and trace 212 → 201 ms. Unpinned, the dragon's first frame
-    /// still gained (141 → 128 ms) but the tile's first trace was 282–427 ms in 3 of 4 fresh
-    /// processes against 203–209 without, and both settings saw rare stalls of 100+ ms in fresh
-    /// processes on this (virtual) machine. Default true.
+    /// Only a process's first call gains (warm calls reuse the buffers); pinned (`--pin`, as
+    /// every benchmark runs) it gained on the dragon and the tile of dragons, unpinned the
+    /// tile's first trace was often slower, and fresh processes with either setting saw rare
+    /// long stalls on this (virtual) machine (BENCHMARKS.md, § Fig. 14). Default true.
     pub huge_pages: bool,
 }
 

@@ -15,7 +15,7 @@
 //! | `split.rs` | the split plane | §3.6 |
 //! | `cone_rec.rs` | Algorithm 2: the cone recursion, the packets' cones, FlushCones | §3.3, App. |
 //! | `packets.rs` | packets of 64 rays (pinhole tiles, shadow runs), `PackedCone` | §3.3 |
-//! | `run.rs` | one call: the plan, the tasks (threads), each task's set-up and results | §3.3, ours |
+//! | `run.rs` | one call: the plan, the tasks (threads), each task's set-up, results | §3.3, ours |
 //! | `screen.rs` | screen-space and pixel culling: the pixel check, the projection | ours |
 //! | `tile_leaf.rs` | tile leaves | ours |
 //! | `scratch.rs` | the buffers kept between calls, on huge pages | ours |
@@ -40,9 +40,8 @@
 //!   ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped as
 //!   in the paper). The paper's threshold is 100; ours defaults to 0 (plane test only), by
 //!   measurement: the edge-axis test costs about six four-wide ray/triangle tests per triangle
-//!   and saves only the tests of the rays that reach the triangles it drops; at 1024² camera
-//!   rays, 100 made the frame 1.3× slower on the 871K dragon and 1.05–1.2× on Sponza and the
-//!   bunny (BENCHMARKS.md).
+//!   and saves only the tests of the rays that reach the triangles it drops: camera frames
+//!   were slower with it, or no faster (BENCHMARKS.md, § Fig. 8, "SAT").
 //! - **§3.6, Fig. 5** (split choice, `Task::choose_split`, `split.rs`): longest axis; for
 //!   streams of at least `split_sample_threshold` triangles the mean of the clamped span
 //!   midpoints of every `split_sample_stride`-th triangle, else the spatial median. Guard: when
@@ -66,17 +65,15 @@
 //!   integer rectangle overlap; a flush loads only the live rays of a tile inside the cell's
 //!   pixel rectangle, and a tile stays in a cell only while one of its live (not terminated)
 //!   pixels is inside. Cells reaching behind the eye keep the exact cone test (when the whole
-//!   scene is in front of the eye, the cones are not built at all). Dragon, 1024²: the
-//!   cone/box tests were 15% of the frame, the flush loop another 15%; the frame went from
-//!   556 to 410 ms (BENCHMARKS.md).
+//!   scene is in front of the eye, the cones are not built at all). It replaces most cone/box
+//!   tests and shortens the flushes (measured in BENCHMARKS.md, § DACRT design measurements).
 //! - **Pixel culling** (ours, `Config::pixel_cull`, `screen.rs`): before dividing, the
 //!   triangles whose projection covers no pixel centre of the task's image rows are dropped: no
 //!   ray of the batch can hit them (an empty rectangle from
 //!   [`crate::geom::PixelProjection::triangle_rects_wide`], four or eight lanes, with a
-//!   rounding bound). Meshes denser than the image are mostly such triangles: over two
-//!   thirds of the 3.5M-triangle tile of dragons at 1024² (triangle/box tests 82M → 37M; its
-//!   frame through the harness went from 827 to 573 ms with this and the cone skip above),
-//!   a third of the 871K dragon (about even there: the cull costs what it saves).
+//!   rounding bound). Meshes denser than the image are mostly such triangles, so it pays on
+//!   them; elsewhere the cull costs about what it saves (measured in BENCHMARKS.md, § DACRT
+//!   design measurements).
 //! - **Tile leaves** (ours, `Config::pixel_leaf`, `tile_leaf.rs`): the same projection gives
 //!   every triangle its pixel rectangle (`rects`), and the cone recursion ends, instead of
 //!   flushing its tiles' rays into Algorithm 1, in a leaf that tests each triangle against the
@@ -92,28 +89,28 @@
 //!   termination four at a time (`final_hit4`, lane-wise the scalar test). The rays' deviation
 //!   from their pixels is bounded in f32, four at a time
 //!   ([`PixelProjection::deviation4`](crate::geom::PixelProjection::deviation4)), with the
-//!   check that they come from the eye. Dragon, 1024²: ray/triangle tests 27.4M → 2.6M (the
-//!   BVH does 2.7M), triangle/box 19.3M → 6.1M, trace 383 → about 125 ms (BENCHMARKS.md).
+//!   check that they come from the eye. Fewer ray/triangle and triangle/box tests than the
+//!   flushes, and no ray/box tests (BENCHMARKS.md, § Fig. 8, and § DACRT design measurements).
 //! - **§3.4** (random rays, `order.rs`, `ray_rec.rs`): z-buffer (per-ray best `t`, the hit array
 //!   itself) instead of termination, children ordered by the majority sign of the split-axis
 //!   direction. Occlusion is any-hit: every hit terminates its ray, in every mode.
 //! - **Layout of the hot loops** (`ray_rec.rs`, `partition.rs`): the ray list holds 32-byte
 //!   records (`RayRec`: origin, `tmin`, `1/d`, cut-off) swapped together with the ray ids, as
 //!   potato3d's `dacrt_simd` does, so the ray filter streams one record per ray instead of
-//!   gathering eight SoA arrays through an index (2–2.6× faster random-ray mode on
-//!   1M-triangle scenes); the ray and split-plane partitions are branch-free Lomuto loops;
-//!   leaves of at most 64 triangles gather them once into groups of four and run the shared
-//!   four-wide test ([`crate::geom::intersect_triangle4`], bit-equal to the scalar one); larger
-//!   leaves (few rays, many triangles) keep the scalar loop (gathering in chunks for them
-//!   measured ~15% slower on random rays).
+//!   gathering eight SoA arrays through an index; the ray and split-plane partitions are
+//!   branch-free Lomuto loops; leaves of at most 64 triangles gather them once into groups of
+//!   four and run the shared four-wide test ([`crate::geom::intersect_triangle4`], bit-equal
+//!   to the scalar one); larger leaves (few rays, many triangles) keep the scalar loop
+//!   (gathering in chunks for them measured slower; both in BENCHMARKS.md, § DACRT design
+//!   measurements).
 //! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
 //!   the rays (bands of tile rows for camera rays) and their own index lists.
 //! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
 //!   written once over [`crate::geom::lanes::Lanes`] and runs eight triangles at a time in AVX2
-//!   code when the CPU has it (checked at run time; dragon frame 116 → 110 ms, the same
-//!   rectangles bit for bit), four elsewhere; the per-call buffers and min/max lists ask for
-//!   transparent huge pages (`Config::huge_pages`: a first frame's page faults, dragon 133 →
-//!   125 ms).
+//!   code when the CPU has it (checked at run time; the same rectangles bit for bit), four
+//!   elsewhere; the per-call buffers and min/max lists ask for transparent huge pages
+//!   (`Config::huge_pages`: fewer page faults in a process's first frame). Both measured in
+//!   BENCHMARKS.md, § Fig. 14.
 //!
 //! Correctness is bit-exact with `naive`: every candidate pair goes through the shared
 //! [`intersect_triangle`](crate::geom::intersect_triangle) (or its bit-equal four-wide form)
@@ -187,8 +184,8 @@ pub struct Dacrt {
     span: [Vec<[f32; 2]>; 3],
     /// The tasks' index lists and buffers, kept between calls (the task on the `c`-th share of
     /// the rays uses slot `c`, whatever thread runs it): a call allocates only what earlier
-    /// calls did not, so the frames of a dynamic scene allocate nothing after the first (the
-    /// tile of dragons: 5–7% faster from the second call on, page faults spared).
+    /// calls did not, so the frames of a dynamic scene allocate nothing after the first (no
+    /// page faults after it: measured in BENCHMARKS.md, § DACRT design measurements).
     /// [`MAX_POOLED`] empty slots are made with the tracer; tasks beyond use fresh buffers.
     pool: Vec<Mutex<Scratch>>,
 }

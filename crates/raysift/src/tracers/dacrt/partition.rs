@@ -109,13 +109,14 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 pub(super) const PREFETCH: usize = 16;
 
 /// The same distance for the split-plane filter, whose loop is a few cycles per triangle: the
-/// gathered bounds must be asked for further ahead (perf put 40% of the filter on the first
-/// use of a bound at 16 ahead; the dragon's filters took 13 instead of 18 ms at 128).
+/// gathered bounds must be asked for further ahead (at 16 ahead the filter waited on them;
+/// measured in BENCHMARKS.md, § DACRT design measurements).
 const SPLIT_PREFETCH: usize = 128;
 
 /// Hints the CPU to bring `v[i]` into the cache: the triangle lists are walked in order but
-/// the data of their triangles is scattered (on the 871K dragon's tile leaves, prefetching
-/// [`PREFETCH`] triangles ahead measured 10% faster). No effect on any result.
+/// the data of their triangles is scattered (prefetching [`PREFETCH`] triangles ahead made the
+/// tile leaves faster: measured in BENCHMARKS.md, § DACRT design measurements). No effect on
+/// any result.
 #[inline(always)]
 pub(super) fn prefetch<T>(v: &[T], i: usize) {
     #[cfg(target_arch = "x86_64")]

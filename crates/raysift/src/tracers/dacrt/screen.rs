@@ -77,7 +77,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             live_count += live.count_ones() as usize;
             let r = proj.triangle_rects_wide::<L>(v, tol, xs, ys);
             let kept = r.nonempty() & live;
-            // Lane by lane: a vector transpose and select here made the AVX2 loop 10% slower.
+            // Lane by lane: a vector transpose and select here made the AVX2 loop slower
+            // (BENCHMARKS.md, § Fig. 14, "Tried and not kept").
             for l in 0..m {
                 let q = r.lane(l);
                 if kept >> l & 1 != 0 {
@@ -109,7 +110,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// scene order: with `cull` (`Config::pixel_cull`), only the triangles some pixel's ray of
     /// the task can hit; with pixel leaves, each one's rectangle goes to `rects`. Returns the
     /// count. One pass over the vertices in order (a list pass, then reads through the list,
-    /// made the 871K dragon's frame about 5% slower).
+    /// measured slower: BENCHMARKS.md, § DACRT design measurements).
     pub(super) fn project_triangles(
         &mut self,
         proj: &PixelProjection,
@@ -137,8 +138,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         // larger than those of triangles covering many pixels (where a leaf tests each one
         // against every live pixel of its rectangle, occluded or not): `pixel_leaf_c_limit`
         // tiles for rectangles of 16 pixels or more on average, up to 16× that for one pixel
-        // (3.5M-triangle tile of dragons: 8% faster at 4096 tiles than at 256; Sponza's large
-        // triangles twice as slow at 1024).
+        // (large leaves gain on tiny triangles and lose on large ones: measured in
+        // BENCHMARKS.md, § DACRT design measurements).
         let mean = area / (k.max(1) as f64);
         let scale = (16.0 / mean.max(1.0)).clamp(1.0, 16.0);
         self.leaf_tiles = (self.cfg.pixel_leaf_c_limit as f64 * scale) as usize;
@@ -158,9 +159,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 /// from their pixels, an upper bound ([`PixelProjection::deviation4`], f32, four rays at a
 /// time), when every ray starts at `eye` with the first ray's `tmin` (at least 0) and the bound
 /// is at most [`MAX_PIXEL_DEVIATION`]; `None` otherwise. Read-only, so a batch that fails
-/// allocates nothing for tile leaves. Memory-bound like the exact f64 check of a fixed
-/// tolerance it replaces (about 9 ms each on 1024² rays, measured in one run), but it measures
-/// the bound, so jittered rays need no second, per-ray f64 pass.
+/// allocates nothing for tile leaves. Memory-bound, and as fast as the exact f64 check of a
+/// fixed tolerance it replaces (measured in BENCHMARKS.md, § DACRT design measurements), but it
+/// measures the bound, so jittered rays need no second, per-ray f64 pass.
 pub(super) fn pinhole_deviation(
     rays: &RayBatch,
     base: usize,
