@@ -1,7 +1,8 @@
 //! `raysift`: the command line over the raysift library: scene info, ray generation, batch tracing
 //! with any tracer, rendering, animation, export, and the list of tracers.
 //!
-//! One module per command (`info`, `rays`, `trace`, `render`, `animate`, `export`, `tracers`),
+//! One module per command (`info`, `rays`, `trace`, `render`, `animate`, `export`, `tracers`,
+//! `soak`),
 //! plus what they share: arguments (`args`), thread pools and pinning (`pool`), progress display
 //! (`progress`) and the typed `--json` reports (`report`).
 //!
@@ -18,6 +19,7 @@ mod progress;
 mod rays;
 mod render;
 mod report;
+mod soak;
 mod trace;
 mod tracers;
 
@@ -48,6 +50,9 @@ enum Cmd {
     Export(export::ExportArgs),
     /// List the available tracers (--verbose: options, presets and counters; --json: all of it).
     Tracers(tracers::TracersArgs),
+    /// Adversarial scenes and rays, every tracer and preset against naive; reproductions of any
+    /// disagreement are written to files.
+    Soak(soak::SoakArgs),
 }
 
 fn main() {
@@ -77,5 +82,6 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Animate(a) => pool::with_threads(&a.tracer, || animate::run(&a)),
         Cmd::Export(a) => export::run(&a),
         Cmd::Tracers(a) => tracers::run(&a),
+        Cmd::Soak(a) => soak::run(&a),
     }
 }

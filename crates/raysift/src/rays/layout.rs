@@ -195,7 +195,7 @@ impl RayBatch {
         len: usize,
         proj: &impl Fn(usize) -> Option<Vec3>,
     ) -> Option<(usize, usize)> {
-        if len < 4 || n % len != 0 || n / len < 2 {
+        if len < 4 || !n.is_multiple_of(len) || n / len < 2 {
             return None;
         }
         let rows = n / len;
@@ -255,7 +255,7 @@ impl RayBatch {
         let o0 = self.origin(0);
         let g = (1..n).find(|&i| self.origin(i) != o0)?;
         let side = (g as f64).sqrt().round() as usize;
-        if side < 2 || side * side != g || n % g != 0 || n / g < 2 {
+        if side < 2 || side * side != g || !n.is_multiple_of(g) || n / g < 2 {
             return None;
         }
         for start in (0..n).step_by(g) {

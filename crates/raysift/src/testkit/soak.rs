@@ -95,10 +95,11 @@ impl SoakReport {
     }
 }
 
-/// The tracer configurations a soak checks: `(label, entry, options)`.
-fn configurations(
-    cfg: &SoakConfig,
-) -> crate::Result<Vec<(String, &'static Entry, Vec<(String, String)>)>> {
+/// A tracer configuration: label, registry entry, options.
+type Configuration = (String, &'static Entry, Vec<(String, String)>);
+
+/// The tracer configurations a soak checks.
+fn configurations(cfg: &SoakConfig) -> crate::Result<Vec<Configuration>> {
     let mut out = Vec::new();
     let names: Vec<String> = if cfg.tracers.is_empty() {
         tracers::names()
@@ -200,6 +201,7 @@ pub fn soak(cfg: &SoakConfig, mut progress: impl FnMut(u64, u64)) -> crate::Resu
     Ok(report)
 }
 
+#[allow(clippy::needless_range_loop)] // rays, hits and flags indexed alike
 fn compare(
     case: &Case,
     want: &Oracle,

@@ -1,0 +1,273 @@
+//! The options (`--opt key=value`): the paper's limits (§3.2, §3.3, §3.5, §3.6) with its
+//! values where it gives them, and the switches of our extensions.
+
+use crate::tracers::{OptionDoc, Preset};
+use serde::{Deserialize, Serialize};
+
+/// Which recursion to run.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Conic packets for pinhole and shadow batches, random-ray mode otherwise.
+    #[default]
+    Auto,
+    /// Conic packets when the batch's layout allows (falls back to `ray` otherwise).
+    Packet,
+    /// Rays with early termination (front-to-back when the rays share a viewpoint).
+    Ray,
+    /// Rays with a z-buffer and no termination (§3.4).
+    Random,
+}
+
+/// Options (`key=value` on the command line).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// Naive leaf when fewer active rays than this (paper: 20). Default 20.
+    pub r_limit: usize,
+    /// Naive leaf when fewer triangles than this (paper: 16). Default 16.
+    pub p_limit: usize,
+    /// A cell with fewer than `r_limit` rays is still divided while its naive leaf would test
+    /// more than this many ray/triangle pairs (ours: the paper's rule makes a naive leaf of 19
+    /// rays and thousands of triangles, which sparse incoherent batches, such as a path
+    /// tracer's bounces off an open mesh, reach everywhere). `usize::MAX` is the paper's rule.
+    /// Default 200, the fastest value tried on a path tracer's bounce rays, and no change on
+    /// random or shadow rays (BENCHMARKS.md, § Fig. 9 and Fig. 10, and § DACRT design
+    /// measurements).
+    pub leaf_pairs: usize,
+    /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
+    /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
+    pub c_limit: usize,
+    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100;
+    /// measured slower here, see the module doc). Default 0 (never).
+    pub sat_threshold: usize,
+    /// Sampled split position for streams of at least this many triangles, spatial median
+    /// below (paper: 10 000). Default 10000.
+    pub split_sample_threshold: usize,
+    /// Sample every n-th triangle for the split position (paper: 50). Default 50.
+    pub split_sample_stride: usize,
+    /// `auto`, `packet`, `ray` or `random`. Default `auto`.
+    pub mode: Mode,
+    /// Recursion depth cap (a guard; leaves are made naive beyond it). Default 64.
+    pub max_depth: u32,
+    /// Parallel tasks, each with its own index lists over a disjoint share of the rays; 0 = the
+    /// number of rayon threads. Default 0.
+    pub tasks: usize,
+    /// Camera packets whose cone half-angle exceeds this (degrees) are traced as rays.
+    /// Default 20.
+    pub max_cone_deg: f32,
+    /// The same for shadow packets (§3.3's cones from the light), whose 64 rays are grouped by
+    /// position and can be far apart (a wide light cone reaches many cells and floods their
+    /// leaves with rays); 0 turns shadow packets off. Default 0: a cone from the light keeps
+    /// every cell along its 64 segments alive, doubling the triangle/box tests, and 1° packets
+    /// were slower than rays on every scene measured but Sponza (light inside the scene;
+    /// BENCHMARKS.md, § Fig. 8).
+    pub max_shadow_cone_deg: f32,
+    /// When flushing cones, keep only the rays that pass a ray/box test with the cell (fewer
+    /// ray/triangle tests in the leaves, one ray/box test per flushed ray). Default true.
+    pub flush_filter: bool,
+    /// Camera packets: bound each 8×8 tile by its pixel rectangle instead of its cone, and test
+    /// a cell by projecting it onto the image (`geom::PixelProjection`; checked per ray, the
+    /// cone test stays for cells reaching behind the eye and for batches that fail the check).
+    /// `false` runs the paper's cone test everywhere. Default true.
+    pub screen_cull: bool,
+    /// Camera batches: before dividing, drop the triangles that no pixel's ray can hit (their
+    /// projection covers none of the task's pixel centres: sub-pixel triangles between
+    /// samples; `geom::PixelProjection::triangle_may_cover`), when every ray of the task lies
+    /// on its own pixel. Default true.
+    pub pixel_cull: bool,
+    /// Camera batches (as `pixel_cull`): each triangle's pixel rectangle is kept, and the cone
+    /// recursion ends in tile leaves that test a triangle only against the live pixels of its
+    /// rectangle, with no ray list (`Task::tile_leaf`) instead of flushing the cones to rays.
+    /// Default true.
+    pub pixel_leaf: bool,
+    /// With tile leaves: a leaf when fewer active tiles than this (`c_limit`'s role; a tile
+    /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier),
+    /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
+    /// pixels; see `Task::project_triangles`). Default 256.
+    pub pixel_leaf_c_limit: usize,
+    /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
+    /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults.
+    /// Only a process's first call gains (warm calls reuse the buffers); pinned (`--pin`, as
+    /// every benchmark runs) it gained on the dragon and the tile of dragons, unpinned the
+    /// tile's first trace was often slower, and fresh processes with either setting saw rare
+    /// long stalls on this (virtual) machine (BENCHMARKS.md, § Fig. 14). Default true.
+    pub huge_pages: bool,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            r_limit: 20,
+            p_limit: 16,
+            leaf_pairs: 200,
+            c_limit: 16,
+            sat_threshold: 0,
+            split_sample_threshold: 10_000,
+            split_sample_stride: 50,
+            mode: Mode::Auto,
+            max_depth: 64,
+            tasks: 0,
+            max_cone_deg: 20.0,
+            max_shadow_cone_deg: 0.0,
+            flush_filter: true,
+            screen_cull: true,
+            pixel_cull: true,
+            pixel_leaf: true,
+            pixel_leaf_c_limit: 256,
+            huge_pages: true,
+        }
+    }
+}
+
+/// One line per option, for `raysift tracers --verbose` (details on [`Config`]'s fields).
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc { key: "r_limit", doc: "naive leaf when fewer active rays than this (paper: 20)" },
+    OptionDoc { key: "p_limit", doc: "naive leaf when fewer triangles than this (paper: 16)" },
+    OptionDoc { key: "leaf_pairs", doc: "divide a small cell on while its naive leaf would test more pairs than this (ours; usize::MAX: the paper's rule)" },
+    OptionDoc { key: "c_limit", doc: "flush cones to rays when fewer active cones than this" },
+    OptionDoc { key: "sat_threshold", doc: "edge-axis triangle/box test on streams smaller than this (paper: 100; 0: never)" },
+    OptionDoc { key: "split_sample_threshold", doc: "sampled split position for streams of at least this many triangles (paper: 10000)" },
+    OptionDoc { key: "split_sample_stride", doc: "sample every n-th triangle for the split position (paper: 50)" },
+    OptionDoc { key: "mode", doc: "auto, packet, ray or random" },
+    OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
+    OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
+    OptionDoc { key: "max_cone_deg", doc: "camera packets with a wider cone half-angle (degrees) are traced as rays" },
+    OptionDoc { key: "max_shadow_cone_deg", doc: "the same for shadow packets from a light (0: no shadow packets)" },
+    OptionDoc { key: "flush_filter", doc: "flushed cones keep only the rays entering the cell" },
+    OptionDoc { key: "screen_cull", doc: "camera packets: cull cells by their projection onto the image instead of the tiles' cones (ours)" },
+    OptionDoc { key: "pixel_cull", doc: "camera batches: drop triangles that cover no pixel centre (ours)" },
+    OptionDoc { key: "pixel_leaf", doc: "camera batches: tile leaves testing each triangle against the pixels of its rectangle (ours)" },
+    OptionDoc { key: "pixel_leaf_c_limit", doc: "tile leaf when fewer active tiles than this" },
+    OptionDoc { key: "huge_pages", doc: "ask Linux for transparent huge pages for the per-call buffers" },
+];
+
+/// The paper's small limits and ours pushed to their extremes (deep recursions everywhere),
+/// over three tasks.
+macro_rules! tiny {
+    ($mode:literal) => {
+        &[
+            ("mode", $mode),
+            ("tasks", "3"),
+            ("r_limit", "2"),
+            ("p_limit", "2"),
+            ("c_limit", "1"),
+            ("sat_threshold", "1000"),
+            ("split_sample_threshold", "64"),
+            ("split_sample_stride", "3"),
+            ("max_depth", "40"),
+            ("leaf_pairs", "0"),
+            ("max_cone_deg", "60"),
+            ("max_shadow_cone_deg", "60"),
+            ("pixel_leaf_c_limit", "1"),
+        ]
+    };
+}
+
+/// Configurations the conformance suite checks besides the defaults: every mode with one task
+/// and with tiny limits over three tasks, the paper's cones and leaf rule, flushes, shadow
+/// packets, and no huge pages.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "packet",
+        opts: &[("mode", "packet"), ("tasks", "1")],
+    },
+    Preset {
+        name: "ray",
+        opts: &[("mode", "ray"), ("tasks", "1")],
+    },
+    Preset {
+        name: "random",
+        opts: &[("mode", "random"), ("tasks", "1")],
+    },
+    Preset {
+        name: "auto",
+        opts: &[("mode", "auto"), ("tasks", "1")],
+    },
+    Preset {
+        name: "packet tiny",
+        opts: tiny!("packet"),
+    },
+    Preset {
+        name: "ray tiny",
+        opts: tiny!("ray"),
+    },
+    Preset {
+        name: "random tiny",
+        opts: tiny!("random"),
+    },
+    Preset {
+        name: "auto tiny",
+        opts: tiny!("auto"),
+    },
+    Preset {
+        name: "wide cones, no flush filter, no pixel culling or tile leaves",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("max_cone_deg", "80"),
+            ("max_shadow_cone_deg", "80"),
+            ("flush_filter", "false"),
+            ("pixel_cull", "false"),
+            ("pixel_leaf", "false"),
+        ],
+    },
+    Preset {
+        name: "paper's leaf rule, ray",
+        opts: &[
+            ("mode", "ray"),
+            ("tasks", "2"),
+            ("leaf_pairs", "18446744073709551615"),
+        ],
+    },
+    Preset {
+        name: "paper's leaf rule, random",
+        opts: &[
+            ("mode", "random"),
+            ("tasks", "2"),
+            ("leaf_pairs", "18446744073709551615"),
+        ],
+    },
+    Preset {
+        name: "cones never flushed, shadow packets",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "1"),
+            ("c_limit", "100000"),
+            ("max_shadow_cone_deg", "30"),
+        ],
+    },
+    Preset {
+        name: "paper's cones with tile leaves",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("screen_cull", "false"),
+            ("pixel_leaf", "true"),
+            ("c_limit", "4"),
+            ("pixel_leaf_c_limit", "4"),
+            ("p_limit", "4"),
+        ],
+    },
+    Preset {
+        name: "paper's cones flushed to rays",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("screen_cull", "false"),
+            ("pixel_leaf", "false"),
+            ("c_limit", "4"),
+            ("pixel_leaf_c_limit", "4"),
+            ("p_limit", "4"),
+        ],
+    },
+    Preset {
+        name: "flushes, no huge pages",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "1"),
+            ("pixel_leaf", "false"),
+            ("huge_pages", "false"),
+        ],
+    },
+];

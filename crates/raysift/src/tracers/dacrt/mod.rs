@@ -1,0 +1,426 @@
+//! `dacrt`: Divide-And-Conquer Ray Tracing (Mora 2011, "Naive ray-tracing: a divide-and-conquer
+//! approach"). No acceleration structure is stored: each call partitions a triangle index list
+//! and a ray index list in place, recursing on axis-aligned halves of space until a problem is
+//! small enough for the naive double loop.
+//!
+//! The files, the paper's first, then ours:
+//!
+//! | file | holds | paper |
+//! |---|---|---|
+//! | `mod.rs` | [`Dacrt`], a task's state `Task`, `impl Tracer` (prepare: min/max lists) | §3.5 |
+//! | `config.rs` | [`Mode`], [`Config`] and its defaults | §3.2–3.6, ours |
+//! | `ray_rec.rs` | Algorithm 1: in-place ray recursion, ray records, naive leaves | §3.1–3.2 |
+//! | `order.rs` | which child first; when a hit is final (early termination) | §3.2, §3.4 |
+//! | `partition.rs` | triangle streaming: the in-place triangle and ray partitions | §3.5 |
+//! | `split.rs` | the split plane | §3.6 |
+//! | `cone_rec.rs` | Algorithm 2: the cone recursion, the packets' cones, FlushCones | §3.3, App. |
+//! | `packets.rs` | packets of 64 rays (pinhole tiles, shadow runs), `PackedCone` | §3.3 |
+//! | `run.rs` | one call: the plan, the tasks (threads), each task's set-up, results | §3.3, ours |
+//! | `screen.rs` | screen-space and pixel culling: the pixel check, the projection | ours |
+//! | `tile_leaf.rs` | tile leaves | ours |
+//! | `scratch.rs` | the buffers kept between calls, on huge pages | ours |
+//! | `tests.rs` | unit tests of the pieces (the tracer's own: `tests/dacrt.rs`) | |
+//!
+//! What implements which part of the paper:
+//! - **§3.1–3.2, Fig. 2–3, Algorithm 1** (`Task::ray_rec`, `ray_rec.rs`): the in-place
+//!   recursion. A node is `(cell, triangle prefix [0, nt), ray range [rterm, rend))`; each child
+//!   is built by partitioning the parent's prefix (children are prefixes). The second child
+//!   tests only the first child's survivors: what the first child rejected lies in the second
+//!   (the cell is their union) and joins it untested (`gather_block`). Naive leaf when
+//!   `rays < r_limit` or `triangles < p_limit`, except that a cell whose naive leaf would test
+//!   more than `leaf_pairs` pairs is divided further (ours, see `Config::leaf_pairs`).
+//! - **Early ray termination** (§3.2, `order.rs`): finished rays are swapped into the global
+//!   prefix `[0, rterm)` so they leave every ancestor range at once. Only legal when the hit is
+//!   final; see `Order` for the exact rule (hit inside the leaf cell, and every earlier stretch
+//!   of the ray already visited).
+//! - **§3.5, Fig. 4** (triangle streaming, `partition.rs`): per-axis min/max lists (three arrays
+//!   of `[min, max]` pairs, an SoA version of the paper's four reshuffled lists), so the
+//!   split-plane test of a large stream reads 8 bytes per triangle. Streams below
+//!   `sat_threshold` also run the 9 edge axes of the Akenine-Möller test
+//!   ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped as
+//!   in the paper). The paper's threshold is 100; ours defaults to 0 (plane test only), by
+//!   measurement: the edge-axis test costs about six four-wide ray/triangle tests per triangle
+//!   and saves only the tests of the rays that reach the triangles it drops: camera frames
+//!   were slower with it, or no faster (BENCHMARKS.md, § Fig. 8, "SAT").
+//! - **§3.6, Fig. 5** (split choice, `Task::choose_split`, `split.rs`): longest axis; for
+//!   streams of at least `split_sample_threshold` triangles the mean of the clamped span
+//!   midpoints of every `split_sample_stride`-th triangle, else the spatial median. Guard: when
+//!   every triangle straddles the plane (no progress possible), or the cell cannot be split in
+//!   f32, go naive.
+//! - **§3.3, Algorithm 2, Appendix** (conic packets, `Task::cone_rec`, `cone_rec.rs`; the
+//!   packets in `packets.rs`): 8×8 pixel tiles of pinhole rays, or 64 shadow rays consecutive
+//!   in a Morton order of their origins with the cone from the light to the origins (cut at
+//!   their distance, plus a small ball around the light because the rays end a few ulps off
+//!   it), bounded by a cone (axis, f64 cos², 64 termination bits); exact cone/box test
+//!   ([`crate::geom::ConeQuery`]: bounding-sphere accept/reject, axis ray, then the silhouette
+//!   edges from a 64-entry table); below `c_limit` cones (or `p_limit` triangles) the
+//!   non-terminated rays of the cones are flushed into the ray list (by default only those
+//!   entering the cell: `flush_filter`) and Algorithm 1 continues; terminated rays set their
+//!   cone's bit, and cones with every bit set leave the cone list through their own terminated
+//!   prefix.
+//! - **Screen-space culling** (ours, `Config::screen_cull`, `screen.rs`; the idea of Hoedt's
+//!   frustum culling, in pixels): a camera batch is a pinhole image, so instead of each tile's
+//!   cone, a cell is projected once onto the image ([`crate::geom::PixelProjection`], fitted to
+//!   the corner rays and checked against every ray of the task) and the tiles are tested by
+//!   integer rectangle overlap; a flush loads only the live rays of a tile inside the cell's
+//!   pixel rectangle, and a tile stays in a cell only while one of its live (not terminated)
+//!   pixels is inside. Cells reaching behind the eye keep the exact cone test (when the whole
+//!   scene is in front of the eye, the cones are not built at all). It replaces most cone/box
+//!   tests and shortens the flushes (measured in BENCHMARKS.md, § DACRT design measurements).
+//! - **Pixel culling** (ours, `Config::pixel_cull`, `screen.rs`): before dividing, the
+//!   triangles whose projection covers no pixel centre of the task's image rows are dropped: no
+//!   ray of the batch can hit them (an empty rectangle from
+//!   [`crate::geom::PixelProjection::triangle_rects_wide`], four or eight lanes, with a
+//!   rounding bound). Meshes denser than the image are mostly such triangles, so it pays on
+//!   them; elsewhere the cull costs about what it saves (measured in BENCHMARKS.md, § DACRT
+//!   design measurements).
+//! - **Tile leaves** (ours, `Config::pixel_leaf`, `tile_leaf.rs`): the same projection gives
+//!   every triangle its pixel rectangle (`rects`), and the cone recursion ends, instead of
+//!   flushing its tiles' rays into Algorithm 1, in a leaf that tests each triangle against the
+//!   live pixels of its rectangle inside the cell's (`Task::tile_leaf`), read off the tiles'
+//!   termination bits. A camera batch then needs no ray list at all: the rays are kept in tile
+//!   order, one 16-byte record each (direction and z-buffer). The leaf costs about one
+//!   rectangle check per triangle plus the pairs, not rays × triangles, so leaves are large
+//!   (fewer than `pixel_leaf_c_limit` = 256 live tiles, more for tiny triangles). Front-to-back
+//!   termination still works per pixel. A triangle meets its pixels four at a time, through
+//!   the shared test prepared for rays from the eye
+//!   ([`TriFromOrigin`](crate::geom::TriFromOrigin), bit-identical), and is set up only when
+//!   its rectangle still has a live pixel; the pixels hit in a leaf are checked for
+//!   termination four at a time (`final_hit4`, lane-wise the scalar test). The rays' deviation
+//!   from their pixels is bounded in f32, four at a time
+//!   ([`PixelProjection::deviation4`](crate::geom::PixelProjection::deviation4)), with the
+//!   check that they come from the eye. Fewer ray/triangle and triangle/box tests than the
+//!   flushes, and no ray/box tests (BENCHMARKS.md, § Fig. 8, and § DACRT design measurements).
+//! - **§3.4** (random rays, `order.rs`, `ray_rec.rs`): z-buffer (per-ray best `t`, the hit array
+//!   itself) instead of termination, children ordered by the majority sign of the split-axis
+//!   direction. Occlusion is any-hit: every hit terminates its ray, in every mode.
+//! - **Layout of the hot loops** (`ray_rec.rs`, `partition.rs`): the ray list holds 32-byte
+//!   records (`RayRec`: origin, `tmin`, `1/d`, cut-off) swapped together with the ray ids, as
+//!   potato3d's `dacrt_simd` does, so the ray filter streams one record per ray instead of
+//!   gathering eight SoA arrays through an index; the ray and split-plane partitions are
+//!   branch-free Lomuto loops; leaves of at most 64 triangles gather them once into groups of
+//!   four and run the shared four-wide test ([`crate::geom::intersect_triangle4`], bit-equal
+//!   to the scalar one); larger leaves (few rays, many triangles) keep the scalar loop
+//!   (gathering in chunks for them measured slower; both in BENCHMARKS.md, § DACRT design
+//!   measurements).
+//! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
+//!   the rays (bands of tile rows for camera rays) and their own index lists.
+//! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
+//!   written once over [`crate::geom::lanes::Lanes`] and runs eight triangles at a time in AVX2
+//!   code when the CPU has it (checked at run time; the same rectangles bit for bit), four
+//!   elsewhere; the per-call buffers and min/max lists ask for transparent huge pages
+//!   (`Config::huge_pages`: fewer page faults in a process's first frame). Both measured in
+//!   BENCHMARKS.md, § Fig. 14.
+//!
+//! Correctness is bit-exact with `naive`: every candidate pair goes through the shared
+//! [`intersect_triangle`](crate::geom::intersect_triangle) (or its bit-equal four-wide form)
+//! and [`closer`](crate::tracer::closer), and every filter is conservative (the z-buffer cut
+//! and box exits are widened by the shared rounding slack).
+//!
+//! **Memory** (bytes the tracer allocates; deterministic, independent of the scene's shape):
+//! - made by prepare: `24·T` (per axis, each triangle's `[min, max]`);
+//! - per call, for `K` tasks (kept by the tracer afterwards, so that a call allocates only
+//!   what earlier calls did not: a dynamic scene's frames allocate nothing after the first):
+//!   `4·T·K` (triangle indices) `+ 36·R` (ray indices and 32-byte ray records: origin,
+//!   `tmin`, inverse direction, cut-off; see `RayRec`; not with tile leaves)
+//!   and, in packet mode, `68` bytes per cone (64 for the prepared cone, 4 for its index), i.e.
+//!   `68·⌈W/8⌉·(tile rows)` for camera rays (`= 1.0625·R` when W and H are multiples of 8 and
+//!   the bands are whole tile rows) and, for shadow rays when shadow packets are on
+//!   (`max_shadow_cone_deg > 0`), `68·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
+//!   rays that groups them into compact packets). Camera batches with tile leaves (every
+//!   ray from the eye within 2 pixels of its pixel, one `tmin`) have no ray list but
+//!   `8·T·K` (pixel rectangles) and, per tile, 1036 bytes besides its cone: 64 ray records of
+//!   16 bytes, and 12 for the leaves' bookkeeping.
+//!
+//! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
+//! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
+//! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 24 +
+//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false` or when the rays fail the
+//! pixel check: it allocates nothing). These are the bytes a
+//! first call allocates, so also a bound on its peak, and what the tracer then holds
+//! ([`Tracer::bytes`]: `24·T` plus the kept buffers); `Stats::peak_bytes` reports the largest
+//! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
+//! counting allocator, and that a second call allocates nothing. Screen-space and pixel
+//! culling allocate nothing.
+
+mod cone_rec;
+mod config;
+mod order;
+mod packets;
+mod partition;
+mod ray_rec;
+mod run;
+mod scratch;
+mod screen;
+mod split;
+#[cfg(test)]
+mod tests;
+mod tile_leaf;
+
+pub use config::{Config, Mode, OPTION_DOCS, PRESETS};
+
+use crate::error::Result;
+use crate::geom::PixelProjection;
+use crate::mem::reserve_exact_huge;
+use crate::rays::{HitBatch, RayBatch};
+use crate::scene::{Scene, Stamp, TriangleSoup};
+use crate::tracer::{
+    par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer,
+};
+use glam::{Vec3, Vec4};
+use order::View;
+use packets::{PackedCone, Packets};
+use ray_rec::RayRec;
+use scratch::{Scratch, MAX_POOLED};
+use std::sync::Mutex;
+
+/// The DACRT tracer: the scene plus its per-axis triangle bounds (rebuilt by every prepare, O(T)).
+pub struct Dacrt {
+    cfg: Config,
+    stamp: Stamp,
+    /// `span[a][t] = [lo, hi]`: triangle `t`'s bounds on axis `a` (§3.5's min/max lists, each
+    /// pair side by side: the split-plane test gathers both through the triangle index, and one
+    /// cache line instead of two measured faster on the 871K dragon).
+    /// Degenerate triangles get `lo = +inf, hi = -inf` so the first split drops them (exact:
+    /// the shared triangle test never hits them).
+    span: [Vec<[f32; 2]>; 3],
+    /// The tasks' index lists and buffers, kept between calls (the task on the `c`-th share of
+    /// the rays uses slot `c`, whatever thread runs it): a call allocates only what earlier
+    /// calls did not, so the frames of a dynamic scene allocate nothing after the first (no
+    /// page faults after it: measured in BENCHMARKS.md, § DACRT design measurements).
+    /// [`MAX_POOLED`] empty slots are made with the tracer; tasks beyond use fresh buffers.
+    pool: Vec<Mutex<Scratch>>,
+}
+
+impl Dacrt {
+    /// A tracer with options.
+    pub fn new(cfg: Config) -> Self {
+        Self {
+            cfg,
+            stamp: Stamp::default(),
+            span: Default::default(),
+            pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
+        }
+    }
+
+    /// The options.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    fn tasks(&self) -> usize {
+        if self.cfg.tasks == 0 {
+            rayon::current_num_threads().max(1)
+        } else {
+            self.cfg.tasks
+        }
+    }
+}
+
+/// One task: a disjoint share of the rays with its own index lists.
+struct Task<'a, const ANY: bool> {
+    cfg: &'a Config,
+    tris: &'a TriangleSoup,
+    span: [&'a [[f32; 2]]; 3],
+    rays: &'a RayBatch,
+    /// First ray of the share.
+    base: usize,
+    // Closest-hit outputs (empty for ANY); `t` doubles as the z-buffer: it holds `tmax` until
+    // a hit is found and is reset to +inf for misses at the end.
+    t: &'a mut [f32],
+    prim: &'a mut [u32],
+    u: &'a mut [f32],
+    v: &'a mut [f32],
+    // Any-hit output (empty for closest).
+    occ: &'a mut [bool],
+    tri_idx: Vec<u32>,
+    /// Local ray ids; `recs[p]` is the record of ray `ray_idx[p]` (both permuted together).
+    ray_idx: Vec<u32>,
+    recs: Vec<RayRec>,
+    /// Terminated-ray pivot (§3.2): `ray_idx[..rterm]` are final.
+    rterm: usize,
+    terminate: bool,
+    view: View,
+    packets: Packets,
+    apex: Vec3,
+    /// Screen-space culling of camera tiles (`Config::screen_cull`), when every ray of the
+    /// task starts at the eye and projects within `tol` pixels of its own pixel; `row0` is the
+    /// image row of the task's first.
+    proj: Option<PixelProjection>,
+    tol: f64,
+    row0: i64,
+    /// False when screen-space culling decides every cell (the cones are then not built).
+    cones_built: bool,
+    cones: Vec<PackedCone>,
+    cone_idx: Vec<u32>,
+    /// Shadow packets: rays grouped by a Morton code of their origin so that 64 consecutive
+    /// slots are close together (compact cones). Entry `x`: low 32 bits = the ray in slot `x`,
+    /// high 32 bits = the slot of ray `x`. Empty otherwise.
+    perm: Vec<u64>,
+    /// Terminated-cone pivot.
+    cterm: usize,
+    /// Tile leaves (`Config::pixel_leaf`): the cone recursion ends in [`Task::tile_leaf`] and
+    /// there is no ray list. `rects[t]` is triangle `t`'s inclusive pixel rectangle
+    /// `[x0, x1, y0, y1]` (task-local rows); `touched[c]`, the pixels of tile `c` some triangle
+    /// of the current leaf hit, and `touched_list` the tiles with any (capacity: the tile
+    /// count, never exceeded). All empty otherwise.
+    tile_leaves: bool,
+    /// Tile leaves: a leaf below this many live tiles (see `project_triangles`).
+    leaf_tiles: usize,
+    rects: Vec<[u16; 4]>,
+    /// Tile leaves: the rays in tile order (pixel `bit` of tile `c` at `64·c + bit`): the
+    /// direction, and in `w` the cut-off (closest hit: the best `t` so far, the z-buffer;
+    /// any-hit: `tmax`), so a pair reads one 16-byte record; `tmin0` is every ray's `tmin`.
+    tile_rays: Vec<Vec4>,
+    tmin0: f32,
+    touched: Vec<u64>,
+    touched_list: Vec<u32>,
+    st: Counts,
+    /// Bytes this task allocated (see the module doc's formula).
+    peak: u64,
+}
+
+crate::counters! {
+    /// What a `dacrt` trace counts.
+    pub struct Counts {
+        /// Ray/box tests (a ray filtered against a cell).
+        ray_box,
+        /// Ray/triangle tests.
+        ray_tri,
+        /// Triangle/box tests (a triangle filtered against a cell: split plane, and edge axes below `sat_threshold`).
+        tri_box,
+        /// Cone/box tests (a conic packet against a cell).
+        cone_box,
+        /// Cells divided (interior steps of the recursion).
+        nodes,
+        /// Naive leaves (and tile leaves).
+        leaves,
+    }
+}
+
+crate::counters! {
+    /// What a `dacrt` prepare makes.
+    pub struct Built {
+        /// Triangles whose per-axis min/max lists were written.
+        triangles,
+    }
+}
+
+/// Counter docs, for the registry: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (
+    <Built as crate::tracer::CounterSet>::DOCS,
+    <Counts as crate::tracer::CounterSet>::DOCS,
+);
+
+impl Tracer for Dacrt {
+    fn name(&self) -> &'static str {
+        "dacrt"
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        self.stamp = Stamp::default();
+        let tris = scene.triangles();
+        let n = tris.len();
+        let huge = self.cfg.huge_pages;
+        for v in &mut self.span {
+            reserve_exact_huge(v, n, huge);
+        }
+        for t in 0..n {
+            let [a, b, c] = tris.get(t);
+            let degenerate = a == b && b == c;
+            let (mn, mx) = if degenerate {
+                (Vec3::INFINITY, Vec3::NEG_INFINITY)
+            } else {
+                (a.min(b).min(c), a.max(b).max(c))
+            };
+            for k in 0..3 {
+                self.span[k].push([mn[k], mx[k]]);
+            }
+        }
+        self.stamp = scene.stamp();
+        Ok(Stats::prepared(
+            &Built {
+                triangles: n as u64,
+            },
+            self.bytes(),
+        ))
+    }
+
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        if scene.is_empty() || rays.is_empty() {
+            hits.reset(rays.len());
+            if let Some(c) = cost {
+                c.reset(rays.len());
+            }
+            return Ok(Stats::traced(rays.len(), &Counts::default()));
+        }
+        let (plan, packets) = self.plan(rays);
+        let tally: Tally<Counts> =
+            par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, _cost| {
+                self.run_task::<false>(
+                    scene,
+                    rays,
+                    range,
+                    &plan,
+                    packets,
+                    out.t,
+                    out.prim,
+                    out.u,
+                    out.v,
+                    &mut [],
+                )
+            });
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        if scene.is_empty() || rays.is_empty() {
+            occluded.clear();
+            occluded.resize(rays.len(), false);
+            if let Some(c) = cost {
+                c.reset(rays.len());
+            }
+            return Ok(Stats::traced(rays.len(), &Counts::default()));
+        }
+        let (plan, packets) = self.plan(rays);
+        let tally: Tally<Counts> =
+            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, _cost| {
+                self.run_task::<true>(
+                    scene,
+                    rays,
+                    range,
+                    &plan,
+                    packets,
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    out,
+                )
+            });
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn bytes(&self) -> usize {
+        let pool: usize = self
+            .pool
+            .iter()
+            .map(|m| m.lock().map_or(0, |g| g.bytes()))
+            .sum();
+        self.span.iter().map(|v| v.capacity() * 8).sum::<usize>() + pool
+    }
+}

@@ -1,0 +1,154 @@
+//! Triangle streaming (§3.5, Fig. 4): the root triangle list and the in-place partitions of
+//! the triangle and ray lists (branch-free Lomuto loops over the min/max lists and the ray
+//! records), with the block move that hands the first child's rejects to the second.
+
+use super::Task;
+use crate::geom::{tri_box_edge_axes, Aabb};
+
+impl<'a, const ANY: bool> Task<'a, ANY> {
+    /// Fills `tri_idx` with the ids of the non-degenerate triangles (degenerate ones have an
+    /// empty span and are never hit) and returns their count. Every root list holds only
+    /// triangles some box can hold: the second child takes the first child's rejects untested.
+    pub(super) fn live_triangles(&mut self) -> usize {
+        let span = self.span[0];
+        self.tri_idx.clear();
+        self.tri_idx.extend(
+            span.iter()
+                .enumerate()
+                .filter(|(_, s)| s[0] <= s[1])
+                .map(|(t, _)| t as u32),
+        );
+        self.tri_idx.len()
+    }
+
+    /// In-place filter of `ray_idx[rterm..rend]` against `b` (full slab test, §3.2: no stacked
+    /// intervals). Returns the new end.
+    ///
+    /// Branch-free Lomuto partition: with `[rterm, k)` kept and `[k, p)` rejected, swapping
+    /// slots `k` and `p` unconditionally keeps both invariants whatever the test says (a rejected
+    /// ray at `p` trades places with a rejected one at `k`, or with itself), so only `k` depends
+    /// on the test.
+    pub(super) fn partition_rays(&mut self, b: &Aabb, rend: usize) -> usize {
+        let start = self.rterm;
+        let recs = &mut self.recs[..rend];
+        let ids = &mut self.ray_idx[..rend];
+        let mut k = start;
+        for p in start..rend {
+            let keep = b.hit_by_packed(&recs[p]);
+            recs.swap(k, p);
+            ids.swap(k, p);
+            k += keep as usize;
+        }
+        self.st.ray_box += (rend - start) as u64;
+        k
+    }
+
+    /// In-place filter of `tri_idx[..nt]` for the child on side `low` of `split`: the split-plane
+    /// test on the min/max lists, plus the edge axes on small streams. Returns the new count and
+    /// how many triangles the plane test would also send to the other child.
+    pub(super) fn partition_tris(
+        &mut self,
+        nt: usize,
+        axis: usize,
+        split: f32,
+        low: bool,
+        child: &Aabb,
+    ) -> (usize, usize) {
+        let span = self.span[axis];
+        let sat = nt < self.cfg.sat_threshold;
+        let mut k = 0;
+        let mut other = 0;
+        if !sat {
+            // Large streams: the plane test only, as a branch-free Lomuto partition (see
+            // `partition_rays`: the unconditional swap keeps `[0, k)` kept, `[k, p)` dropped).
+            let idx = &mut self.tri_idx[..nt];
+            for p in 0..nt {
+                if let Some(&f) = idx.get(p + SPLIT_PREFETCH) {
+                    prefetch(span, f as usize);
+                }
+                let t = idx[p] as usize;
+                let [l, h] = span[t];
+                let (inside, opposite) = if low {
+                    (l <= split, h >= split)
+                } else {
+                    (h >= split, l <= split)
+                };
+                other += opposite as usize;
+                idx.swap(k, p);
+                k += inside as usize;
+            }
+            self.st.tri_box += nt as u64;
+            return (k, other);
+        }
+        let mut sat_tests = 0u64;
+        for p in 0..nt {
+            let t = self.tri_idx[p] as usize;
+            let [l, h] = span[t];
+            let (inside, opposite) = if low {
+                (l <= split, h >= split)
+            } else {
+                (h >= split, l <= split)
+            };
+            other += opposite as usize;
+            let keep = inside
+                && (!sat || {
+                    sat_tests += 1;
+                    tri_box_edge_axes(self.tris.v0[t], self.tris.v1[t], self.tris.v2[t], child)
+                });
+            if keep {
+                self.tri_idx.swap(k, p);
+                k += 1;
+            }
+        }
+        self.st.tri_box += nt as u64 + sat_tests;
+        (k, other)
+    }
+}
+
+/// How many triangles ahead the list loops prefetch their scattered data.
+pub(super) const PREFETCH: usize = 16;
+
+/// The same distance for the split-plane filter, whose loop is a few cycles per triangle: the
+/// gathered bounds must be asked for further ahead (at 16 ahead the filter waited on them;
+/// measured in BENCHMARKS.md, § DACRT design measurements).
+const SPLIT_PREFETCH: usize = 128;
+
+/// Hints the CPU to bring `v[i]` into the cache: the triangle lists are walked in order but
+/// the data of their triangles is scattered (prefetching [`PREFETCH`] triangles ahead made the
+/// tile leaves faster: measured in BENCHMARKS.md, § DACRT design measurements). No effect on
+/// any result.
+#[inline(always)]
+pub(super) fn prefetch<T>(v: &[T], i: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if i < v.len() {
+        // SAFETY: `_mm_prefetch` is a cache hint: it never dereferences the pointer for the
+        // program nor faults, whatever the address (here in bounds anyway), and SSE, its
+        // target feature, is part of every x86_64 target. Exercised by every tile leaf of the
+        // DACRT tests.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(v.as_ptr().add(i) as *const i8);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (v, i);
+}
+
+/// Moves the block `v[a..e]` to start at `k <= a` (by swaps; the displaced entries end up after
+/// it) and returns the block's new end `k + (e − a)`: after filtering `v[..a]` into `v[..k]`,
+/// this appends the entries known to be kept without a test.
+#[inline]
+pub(super) fn gather_block<T>(v: &mut [T], k: usize, a: usize, e: usize) -> usize {
+    let (len, gap) = (e - a, a - k);
+    if len <= gap {
+        for i in 0..len {
+            v.swap(k + i, a + i);
+        }
+    } else {
+        // The block's last `gap` entries fill the gap; its head stays where it is.
+        for i in 0..gap {
+            v.swap(k + i, e - gap + i);
+        }
+    }
+    k + len
+}

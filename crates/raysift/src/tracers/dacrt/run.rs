@@ -1,0 +1,352 @@
+//! One call: the plan shared by the tasks (packets or rays, termination, bands of tile rows
+//! for the threads), and each task's set-up (buffers from the pool, cones built, the pixel
+//! check of our screen-space culling and tile leaves), recursions and results.
+
+use super::order::{Order, View};
+use super::packets::{for_each_tile_slot, morton_order, PackedCone, Packets, CONE_BYTES};
+use super::ray_rec::RayRec;
+use super::scratch::{reuse, Scratch};
+use super::screen::{pinhole_deviation, MAX_PIXEL_DEVIATION, PINHOLE_TOL};
+use super::tile_leaf::tile_ordered_rays;
+use super::{Counts, Dacrt, Mode, Task};
+use crate::geom::{ConeQuery, PixelProjection};
+use crate::mem::reserve_exact_huge;
+use crate::rays::{RayBatch, RayLayout, MISS};
+use crate::scene::Scene;
+use crate::tracer::Tally;
+use glam::Vec3;
+use std::ops::Range;
+
+/// The per-call plan shared by all tasks.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Plan {
+    terminate: bool,
+    packets: bool,
+    view: View,
+    pub(super) chunk: usize,
+    /// Camera batches: the image's pixel projection (checked per ray by each task).
+    proj: Option<PixelProjection>,
+}
+
+impl Dacrt {
+    pub(super) fn plan(&self, rays: &RayBatch) -> (Plan, Packets) {
+        let k = self.tasks();
+        let n = rays.len();
+        let mode = self.cfg.mode;
+        let packets_ok = matches!(mode, Mode::Auto | Mode::Packet);
+        match rays.layout {
+            RayLayout::Pinhole { eye, width, height }
+                if width as usize * height as usize == n && n > 0 =>
+            {
+                let (w, h) = (width as usize, height as usize);
+                // Bands of whole tile rows.
+                let rows = h.div_ceil(8).div_ceil(k) * 8;
+                let corners = [0, w - 1, (h - 1) * w, h * w - 1].map(|k| rays.dir(k));
+                let plan = Plan {
+                    terminate: mode != Mode::Random,
+                    packets: packets_ok,
+                    view: View::From(eye),
+                    chunk: rows * w,
+                    proj: (packets_ok && (self.cfg.screen_cull || self.cfg.pixel_cull))
+                        .then(|| PixelProjection::fit(eye, width, height, corners))
+                        .flatten(),
+                };
+                (
+                    plan,
+                    Packets::Tiles {
+                        width: w,
+                        rows,
+                        tw: w.div_ceil(8),
+                    },
+                )
+            }
+            RayLayout::ToPoint { target } => {
+                let chunk = n.div_ceil(64).div_ceil(k).max(1) * 64;
+                let plan = Plan {
+                    terminate: mode != Mode::Random,
+                    packets: packets_ok && self.cfg.max_shadow_cone_deg > 0.0,
+                    view: View::To(target),
+                    chunk,
+                    proj: None,
+                };
+                (plan, Packets::Runs { len: chunk })
+            }
+            _ => {
+                let plan = Plan {
+                    terminate: mode == Mode::Ray || mode == Mode::Packet,
+                    packets: false,
+                    view: View::Majority,
+                    chunk: n.div_ceil(k).max(1),
+                    proj: None,
+                };
+                (plan, Packets::None)
+            }
+        }
+    }
+
+    /// Runs one task over rays `range` (outputs already reset to misses).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run_task<const ANY: bool>(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        range: Range<usize>,
+        plan: &Plan,
+        packets: Packets,
+        t: &mut [f32],
+        prim: &mut [u32],
+        u: &mut [f32],
+        v: &mut [f32],
+        occ: &mut [bool],
+    ) -> Tally<Counts> {
+        let ntri = scene.len();
+        let len = range.len();
+        let huge = self.cfg.huge_pages;
+        // Restrict the packet layout to this task's share (the last band may be shorter).
+        let packets = match (plan.packets, packets) {
+            (true, Packets::Tiles { width, tw, .. }) => Packets::Tiles {
+                width,
+                rows: len / width,
+                tw,
+            },
+            (true, Packets::Runs { .. }) => Packets::Runs { len },
+            _ => Packets::None,
+        };
+        let apex = match plan.view {
+            View::From(p) | View::To(p) => p,
+            View::Majority => Vec3::ZERO,
+        };
+        let ncones = packets.count();
+        // This share's pool slot (shares are `plan.chunk` rays, in order).
+        let slot = self.pool.get(range.start / plan.chunk.max(1));
+        let sc = slot
+            .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
+            .unwrap_or_default();
+        // Filled by `live_triangles`.
+        let tri_idx = reuse(sc.tri_idx, ntri, huge);
+        let mut cones = reuse(sc.cones, ncones, huge);
+        cones.resize(
+            ncones,
+            PackedCone {
+                q: ConeQuery::default(),
+                done: 0,
+            },
+        );
+        let mut perm = reuse(sc.perm, 0, huge);
+        if let Packets::Runs { .. } = packets {
+            perm = morton_order(perm, rays, range.clone(), &scene.bounds(), huge);
+        }
+        let mut task = Task::<ANY> {
+            cfg: &self.cfg,
+            tris: scene.triangles(),
+            span: [&self.span[0], &self.span[1], &self.span[2]],
+            rays,
+            base: range.start,
+            t,
+            prim,
+            u,
+            v,
+            occ,
+            tri_idx,
+            ray_idx: reuse(sc.ray_idx, 0, huge),
+            recs: reuse(sc.recs, 0, huge),
+            rterm: 0,
+            terminate: plan.terminate,
+            view: plan.view,
+            packets,
+            apex,
+            proj: None,
+            tol: 0.0,
+            row0: 0,
+            cones_built: true,
+            cones,
+            cone_idx: reuse(sc.cone_idx, ncones, huge),
+            perm,
+            cterm: 0,
+            tile_leaves: false,
+            leaf_tiles: self.cfg.pixel_leaf_c_limit,
+            // Filled by the projection pass, in triangle order.
+            rects: reuse(sc.rects, 0, huge),
+            tile_rays: reuse(sc.tile_rays, 0, huge),
+            tmin0: 0.0,
+            touched: reuse(sc.touched, 0, huge),
+            touched_list: reuse(sc.touched_list, 0, huge),
+            st: Counts::default(),
+            peak: 0,
+        };
+        let root = scene.bounds();
+        let max_angle = match packets {
+            Packets::Runs { .. } => self.cfg.max_shadow_cone_deg,
+            _ => self.cfg.max_cone_deg,
+        }
+        .to_radians();
+        let mut cull = None;
+        if let (Some(proj), Packets::Tiles { width, rows, .. }) = (plan.proj, packets) {
+            // Screen-space culling with the largest deviation of a ray from its pixel (rounding
+            // for exact pinhole rays; up to about a pixel for jittered ones), for rays from the
+            // eye (the layout is only a hint).
+            let row0 = range.start / width;
+            let tiles_fit = width <= 1 << 16 && rows <= 1 << 16;
+            // With tile leaves, the rays' deviation is bounded in f32, four at a time, with
+            // their origins and `tmin`. Otherwise, or when that fails, exact pinhole rays pass
+            // a fixed tolerance without a division per ray, and other rays have their largest
+            // deviation measured.
+            let mut tol = PINHOLE_TOL;
+            let mut pinhole = false;
+            if self.cfg.pixel_leaf && tiles_fit {
+                if let Some(dev) = pinhole_deviation(rays, range.start, width, rows, &proj, apex) {
+                    (pinhole, tol) = (true, dev);
+                }
+            }
+            let mut from_eye = true;
+            if !pinhole {
+                for (y, row) in range.clone().step_by(width).enumerate() {
+                    for (x, i) in (row..row + width).enumerate() {
+                        from_eye &= rays.origin(i) == apex && rays.tmin[i] >= 0.0;
+                        if !proj.within(rays.dir(i), x, row0 + y, tol) {
+                            tol = -1.0;
+                        }
+                    }
+                }
+            }
+            if tol < 0.0 {
+                tol = 0.0;
+                for (y, row) in range.clone().step_by(width).enumerate() {
+                    for (x, i) in (row..row + width).enumerate() {
+                        let e = proj.deviation(rays.dir(i), x, row0 + y);
+                        // NaN-safe: a NaN deviation makes `tol` NaN, refused below.
+                        tol = if e > tol || e.is_nan() { e } else { tol };
+                    }
+                }
+            }
+            if from_eye && tol <= MAX_PIXEL_DEVIATION {
+                if self.cfg.screen_cull {
+                    (task.proj, task.tol, task.row0) = (Some(proj), tol, row0 as i64);
+                    // Every cell lies in front of the eye when the root does: the cones would
+                    // never be tested, and are not built (see `partition_cones`).
+                    task.cones_built = task.pixels(&scene.bounds()).is_none();
+                }
+                let tmin0 = rays.tmin[range.start];
+                let uniform = pinhole || rays.tmin[range.clone()].iter().all(|&t| t == tmin0);
+                if self.cfg.pixel_leaf && uniform && tiles_fit {
+                    task.tile_leaves = true;
+                    task.tmin0 = tmin0;
+                    let tr = std::mem::take(&mut task.tile_rays);
+                    task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows, huge);
+                    reserve_exact_huge(&mut task.rects, ntri, huge);
+                    reserve_exact_huge(&mut task.touched, ncones, huge);
+                    task.touched.resize(ncones, 0);
+                    reserve_exact_huge(&mut task.touched_list, ncones, huge);
+                }
+                if self.cfg.pixel_cull || task.tile_leaves {
+                    let ys = [row0 as i64, (row0 + rows) as i64 - 1];
+                    cull = Some((proj, tol, ys, self.cfg.pixel_cull));
+                }
+            }
+        }
+        if !ANY && !task.tile_leaves {
+            // The z-buffer starts at `tmax` (tile leaves keep theirs in `tile_rays`).
+            for k in 0..len {
+                task.t[k] = rays.tmax[range.start + k];
+            }
+        }
+        if !task.tile_leaves {
+            reserve_exact_huge(&mut task.ray_idx, len, huge);
+            task.ray_idx.resize(len, 0);
+            reserve_exact_huge(&mut task.recs, len, huge);
+            task.recs.resize(len, RayRec::default());
+        }
+        task.peak = (4 * ntri + CONE_BYTES * ncones + 8 * task.perm.len()) as u64
+            + if task.tile_leaves {
+                (8 * ntri + (12 + 1024) * ncones) as u64
+            } else {
+                36 * len as u64
+            };
+        // Packets first: coherent ones become cones, the rays of the others go to the ray list
+        // (with tile leaves, which need no cones to be correct, they stay tiles with a cone
+        // that meets every box).
+        let mut rend = 0;
+        for c in 0..ncones {
+            if !task.cones_built {
+                task.cone_idx.push(c as u32);
+                continue;
+            }
+            match task.build_cone(c, max_angle) {
+                Some(cone) => {
+                    task.cones[c] = cone;
+                    task.cone_idx.push(c as u32);
+                }
+                None if task.tile_leaves => {
+                    task.cones[c].q = ConeQuery::new(Vec3::Z, 0.0, f32::INFINITY, f32::INFINITY);
+                    task.cone_idx.push(c as u32);
+                }
+                None => {
+                    let perm = std::mem::take(&mut task.perm);
+                    packets.for_each(c, &perm, |k, _| {
+                        task.load_ray(rend, k);
+                        rend += 1;
+                    });
+                    task.perm = perm;
+                }
+            }
+        }
+        if ncones == 0 {
+            for k in 0..len {
+                task.load_ray(k, k);
+            }
+            rend = len;
+        }
+        // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root.
+        let rend = task.partition_rays(&root, rend);
+        let nlive = match cull {
+            Some((proj, tol, ys, cull)) => task.project_triangles(&proj, tol, ys, cull),
+            None => task.live_triangles(),
+        };
+        task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
+        if !task.cone_idx.is_empty() {
+            // Cones: Algorithm 2 from the root; the ray list is free again, and the recursion
+            // only permuted the triangle list's prefix `[0, nlive)`.
+            task.rterm = 0;
+            let cend = task.cone_idx.len();
+            let cend = task.partition_cones(&root, cend);
+            task.cone_rec(root, nlive, cend, 0, Order::NONE);
+        }
+        if !ANY && task.tile_leaves {
+            let Packets::Tiles { width, rows, .. } = packets else {
+                unreachable!("tile leaves are for pinhole tiles only")
+            };
+            for_each_tile_slot(width, rows, |k, j| {
+                task.t[k] = if task.prim[k] == MISS {
+                    f32::INFINITY
+                } else {
+                    task.tile_rays[j].w
+                };
+            });
+        } else if !ANY {
+            for k in 0..len {
+                if task.prim[k] == MISS {
+                    task.t[k] = f32::INFINITY;
+                }
+            }
+        }
+        // The buffers go back to this share's slot for the next call.
+        if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
+            *g = Scratch {
+                tri_idx: task.tri_idx,
+                ray_idx: task.ray_idx,
+                recs: task.recs,
+                cones: task.cones,
+                cone_idx: task.cone_idx,
+                perm: task.perm,
+                rects: task.rects,
+                tile_rays: task.tile_rays,
+                touched: task.touched,
+                touched_list: task.touched_list,
+            };
+        }
+        Tally {
+            counts: task.st,
+            peak_bytes: task.peak,
+        }
+    }
+}
