@@ -44,11 +44,20 @@ pub struct SoakArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// Only write the files of case CLASS:SEED (its scene as OBJ, its rays as .npy) into --out,
+    /// to reproduce or study it; no soak.
+    #[arg(long, value_name = "CLASS:SEED")]
+    write_case: Option<String>,
 }
 
 pub fn run(a: &SoakArgs) -> Result<()> {
     if a.rays == 0 || a.rays_per_case == 0 {
         bail!("--rays and --rays-per-case must be positive");
+    }
+    if let Some(case) = &a.write_case {
+        let (obj, rays) = write_case(case, a.rays_per_case, &a.out)?;
+        eprintln!("wrote {} and {}", obj.display(), rays.display());
+        return Ok(());
     }
     let cfg = SoakConfig {
         rays: a.rays,
@@ -73,14 +82,7 @@ pub fn run(a: &SoakArgs) -> Result<()> {
         .collect();
     let mut repro = Vec::new();
     for case in cases {
-        let c = soak::regenerate(case, a.rays_per_case).context("regenerating a case")?;
-        std::fs::create_dir_all(&a.out)
-            .with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
-        let stem = case.replace(':', "-");
-        let obj = a.out.join(format!("{stem}.obj"));
-        let rays = a.out.join(format!("{stem}-rays.npy"));
-        write_obj(&c.scene, &obj)?;
-        npy::write_rays(&rays, &c.rays)?;
+        let (obj, rays) = write_case(case, a.rays_per_case, &a.out)?;
         repro.push((case.to_string(), obj, rays));
     }
     if a.json {
@@ -143,6 +145,24 @@ pub fn run(a: &SoakArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Writes case `name` (`class:seed`) as `DIR/class-seed.obj` and `DIR/class-seed-rays.npy`.
+fn write_case(name: &str, rays: usize, dir: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+    let Some(c) = soak::regenerate(name, rays) else {
+        bail!(
+            "--write-case {name:?}: expected CLASS:SEED with a class of {}",
+            raysift::testkit::adversarial::CLASSES.join(", ")
+        );
+    };
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+    let stem = name.replace(':', "-");
+    let obj = dir.join(format!("{stem}.obj"));
+    let path = dir.join(format!("{stem}-rays.npy"));
+    write_obj(&c.scene, &obj)?;
+    npy::write_rays(&path, &c.rays)?;
+    Ok((obj, path))
 }
 
 /// The scene's world triangles as an OBJ file, one `f` per triangle in primitive-id order, so

@@ -163,3 +163,52 @@ fn dacrt_counters_and_packets_help() {
         "{ray:?} vs {random:?}"
     );
 }
+
+/// The per-ray cost adds up to the work counters: every ray/triangle and ray/box test charged to
+/// one ray, in every mode (tile leaves, flushed packets, rays, random rays), and packet tests to
+/// the packets' live rays.
+#[test]
+fn dacrt_per_ray_cost_adds_up() {
+    use raysift::tracer::RayCost;
+    let s = procedural::icosphere(5000);
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0);
+    let camera = cam.rays(64, 48);
+    let random = random_in_box(&s.bounds(), 3000, 2);
+    for (rays, what) in [(&camera, "camera"), (&random, "random")] {
+        for kv in [
+            &[("mode", "packet")][..],
+            &[("mode", "packet"), ("pixel_leaf", "false")],
+            &[
+                ("mode", "packet"),
+                ("screen_cull", "false"),
+                ("pixel_leaf", "false"),
+            ],
+            &[("mode", "ray")],
+            &[("mode", "random")],
+        ] {
+            let mut d = tracers::create("dacrt", &opts(kv)).unwrap();
+            d.prepare(&s).unwrap();
+            let mut hits = raysift::HitBatch::new(0);
+            let mut cost = RayCost::default();
+            let st = d.intersect(&s, rays, &mut hits, Some(&mut cost)).unwrap();
+            let sum = |v: &[u32]| v.iter().map(|&x| x as u64).sum::<u64>();
+            assert_eq!(
+                sum(&cost.triangles),
+                st.work.get("ray_tri"),
+                "{what} {kv:?}"
+            );
+            assert!(
+                sum(&cost.tests) >= st.work.get("ray_tri") + st.work.get("ray_box"),
+                "{what} {kv:?}"
+            );
+            let hit = (0..rays.len()).filter(|&i| hits.is_hit(i));
+            assert!(hit.clone().count() > 100);
+            for i in hit {
+                assert!(
+                    cost.nodes[i] > 0 && cost.triangles[i] > 0,
+                    "{what} {kv:?} ray {i}"
+                );
+            }
+        }
+    }
+}

@@ -70,7 +70,7 @@ impl Oracle {
 
 /// Checks one tracer configuration against `want` on `scene` and `rays`: closest hits and
 /// occlusion bit for bit, `Stats::rays`, the same answers with a per-ray cost record asked for
-/// (and records of the batch's length), and the same answers after preparing again for a new
+/// (records of the batch's length, and every hit charged at least one triangle test), and the same answers after preparing again for a new
 /// frame of the same geometry ([`Scene::touch`]).
 pub fn check_tracer(
     entry: &Entry,
@@ -120,6 +120,17 @@ pub fn check_tracer(
             rays.len()
         )));
     }
+    // A hit was found by a ray/triangle test of that ray; every test counted is a test.
+    if let Some(i) = (0..rays.len())
+        .find(|&i| (hits.is_hit(i) && cost.triangles[i] == 0) || cost.tests[i] < cost.triangles[i])
+    {
+        return Err(label(&format!(
+            "per-ray cost of ray {i}: {} tests, {} triangle tests, hit {}",
+            cost.tests[i],
+            cost.triangles[i],
+            hits.is_hit(i)
+        )));
+    }
     let mut occ = Vec::new();
     t.occluded(scene, rays, &mut occ, Some(&mut cost))
         .map_err(|e| label(&e.to_string()))?;
@@ -149,6 +160,53 @@ pub fn check_all(scene: &Scene, rays: &RayBatch) -> Result<(), String> {
         for p in entry.presets {
             check_tracer(entry, &tracers::preset_opts(p), &mut scene, rays, &want)
                 .map_err(|e| format!("preset {:?}: {e}", p.name))?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks every registered tracer and preset through an animation: each keeps one tracer
+/// instance and prepares it again every frame (so tracers that update instead of rebuilding are
+/// checked on their update path), and must equal `naive` on every frame. `step(scene, f)`
+/// changes the scene for frame `f` (through `set_transform` / `replace_positions`).
+pub fn check_animation(
+    scene: &Scene,
+    frames: usize,
+    mut step: impl FnMut(&mut Scene, usize),
+    rays: &RayBatch,
+) -> Result<(), String> {
+    let mut configs = Vec::new();
+    for entry in tracers::REGISTRY.iter().filter(|e| e.name != "naive") {
+        configs.push((entry, Vec::new(), "defaults"));
+        for p in entry.presets {
+            configs.push((entry, tracers::preset_opts(p), p.name));
+        }
+    }
+    let mut live: Vec<_> = configs
+        .iter()
+        .map(|(e, o, _)| e.create(o).map_err(|err| err.to_string()))
+        .collect::<Result<_, _>>()?;
+    let mut scene = scene.clone();
+    for f in 0..frames {
+        if f > 0 {
+            step(&mut scene, f);
+        }
+        let want = Oracle::new(&scene, rays);
+        for (t, (e, _, preset)) in live.iter_mut().zip(&configs) {
+            let label = format!("{} [{preset}] frame {f} of {}", e.name, scene.name);
+            t.prepare(&scene).map_err(|err| format!("{label}: {err}"))?;
+            let (hits, _) = t
+                .intersect_timed(&scene, rays)
+                .map_err(|err| format!("{label}: {err}"))?;
+            if let Some(d) = first_difference(&want.hits, &hits) {
+                return Err(format!("{label}: closest hit: {d}"));
+            }
+            let (occ, _) = t
+                .occluded_timed(&scene, rays)
+                .map_err(|err| format!("{label}: {err}"))?;
+            if let Some(d) = first_occlusion_difference(&want.occluded, &occ) {
+                return Err(format!("{label}: occlusion: {d}"));
+            }
         }
     }
     Ok(())

@@ -12,6 +12,34 @@ use glam::Vec3;
 impl<'a, const ANY: bool> Task<'a, ANY> {
     /// In-place filter of the active cones `cone_idx[cterm..cend]` against `b`.
     pub(super) fn partition_cones(&mut self, b: &Aabb, cend: usize) -> usize {
+        if self.cost.is_some() {
+            let start = self.cterm;
+            let k = self.partition_cones_inner(b, cend);
+            // A packet's test is charged to each of its live rays; kept, they entered the cell.
+            for p in start..cend {
+                self.charge_packet(self.cone_idx[p] as usize, 1, (p < k) as u64);
+            }
+            return k;
+        }
+        self.partition_cones_inner(b, cend)
+    }
+
+    /// Adds `tests` and `nodes` to the cost of every live ray of packet `c`.
+    fn charge_packet(&mut self, c: usize, tests: u64, nodes: u64) {
+        let done = self.cones[c].done;
+        let packets = self.packets;
+        let perm = std::mem::take(&mut self.perm);
+        if let Some(cost) = self.cost.as_mut() {
+            packets.for_each(c, &perm, |k, bit| {
+                if done >> bit & 1 == 0 {
+                    cost.add(k, nodes, tests, 0);
+                }
+            });
+        }
+        self.perm = perm;
+    }
+
+    fn partition_cones_inner(&mut self, b: &Aabb, cend: usize) -> usize {
         let mut k = self.cterm;
         self.st.cone_box += (cend - self.cterm) as u64;
         if let (Some([x0, x1, y0, y1]), Packets::Tiles { tw, .. }) = (self.pixels(b), self.packets)
@@ -69,15 +97,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         };
         // As in `ray_rec`: what the first child rejects goes to the second without a test.
         let child = half(&cell, axis, split, low_first);
-        let (nt0, other) = self.partition_tris(nt, axis, split, low_first, &child);
-        if nt0 == nt && other == nt {
+        let (nt0, other) = self.partition_tris(nt, axis, split, low_first);
+        if super::split::no_progress(nt, nt0, other) {
             return self.cone_leaf(cell, nt, cend, depth, ord);
         }
         let cend0 = self.partition_cones(&child, cend);
         let ord0 = ord.child(axis, split, true, low_first);
         self.cone_rec(child, nt0, cend0, depth + 1, ord0);
         let child = half(&cell, axis, split, !low_first);
-        let (k, _) = self.partition_tris(nt0, axis, split, !low_first, &child);
+        let (k, _) = self.partition_tris(nt0, axis, split, !low_first);
         let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
         let k = self.partition_cones(&child, cend0);
         let cend1 = gather_block(&mut self.cone_idx, k, cend0, cend);
@@ -143,7 +171,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return true;
         }
         self.st.ray_box += 1;
-        cell.hit_by_packed(&self.recs[slot])
+        let keep = cell.hit_by_packed(&self.recs[slot]);
+        if let Some(c) = self.cost.as_mut() {
+            c.add(k, keep as u64, 1, 0);
+        }
+        keep
     }
 
     /// The rest of [`Self::flush`], once the rays `ray_idx[start..rend]` are loaded.

@@ -38,9 +38,6 @@ pub struct Config {
     /// Flush cones to rays when fewer active cones than this (the paper gives no value; 16
     /// balances ray/box savings against deeper cone recursions on dense meshes). Default 16.
     pub c_limit: usize,
-    /// Run the edge-axis triangle/box test only on streams smaller than this (paper: 100;
-    /// measured slower here, see the module doc). Default 0 (never).
-    pub sat_threshold: usize,
     /// Sampled split position for streams of at least this many triangles, spatial median
     /// below (paper: 10 000). Default 10000.
     pub split_sample_threshold: usize,
@@ -102,7 +99,6 @@ impl Default for Config {
             p_limit: 16,
             leaf_pairs: 200,
             c_limit: 16,
-            sat_threshold: 0,
             split_sample_threshold: 10_000,
             split_sample_stride: 50,
             mode: Mode::Auto,
@@ -126,7 +122,6 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "p_limit", doc: "naive leaf when fewer triangles than this (paper: 16)" },
     OptionDoc { key: "leaf_pairs", doc: "divide a small cell on while its naive leaf would test more pairs than this (ours; usize::MAX: the paper's rule)" },
     OptionDoc { key: "c_limit", doc: "flush cones to rays when fewer active cones than this" },
-    OptionDoc { key: "sat_threshold", doc: "edge-axis triangle/box test on streams smaller than this (paper: 100; 0: never)" },
     OptionDoc { key: "split_sample_threshold", doc: "sampled split position for streams of at least this many triangles (paper: 10000)" },
     OptionDoc { key: "split_sample_stride", doc: "sample every n-th triangle for the split position (paper: 50)" },
     OptionDoc { key: "mode", doc: "auto, packet, ray or random" },
@@ -152,7 +147,6 @@ macro_rules! tiny {
             ("r_limit", "2"),
             ("p_limit", "2"),
             ("c_limit", "1"),
-            ("sat_threshold", "1000"),
             ("split_sample_threshold", "64"),
             ("split_sample_stride", "3"),
             ("max_depth", "40"),

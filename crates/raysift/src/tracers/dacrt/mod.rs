@@ -35,13 +35,13 @@
 //!   of the ray already visited).
 //! - **§3.5, Fig. 4** (triangle streaming, `partition.rs`): per-axis min/max lists (three arrays
 //!   of `[min, max]` pairs, an SoA version of the paper's four reshuffled lists), so the
-//!   split-plane test of a large stream reads 8 bytes per triangle. Streams below
-//!   `sat_threshold` also run the 9 edge axes of the Akenine-Möller test
-//!   ([`crate::geom::tri_box_edge_axes`]; face axes implied by induction, plane axis dropped as
-//!   in the paper). The paper's threshold is 100; ours defaults to 0 (plane test only), by
-//!   measurement: the edge-axis test costs about six four-wide ray/triangle tests per triangle
-//!   and saves only the tests of the rays that reach the triangles it drops: camera frames
-//!   were slower with it, or no faster (BENCHMARKS.md, § Fig. 8, "SAT").
+//!   split-plane test of a large stream reads 8 bytes per triangle. The paper also runs the 9
+//!   edge axes of the Akenine-Möller triangle/box test on streams below 100 triangles; we do
+//!   not: it was slower or no faster on every camera frame measured (BENCHMARKS.md, § Fig. 8,
+//!   "SAT"), and it is not exact: its f32 cross products wrongly separate needle triangles from
+//!   cells near a shared vertex (the soak's fans: thousands of lost hits per million rays), and
+//!   no fixed margin covers the rounding of the hits Möller–Trumbore accepts there, while the
+//!   plane test on the min/max lists is exact (see `geom::triangle`, "Why every cull is exact").
 //! - **§3.6, Fig. 5** (split choice, `Task::choose_split`, `split.rs`): longest axis; for
 //!   streams of at least `split_sample_threshold` triangles the mean of the clamped span
 //!   midpoints of every `split_sample_stride`-th triangle, else the spatial median. Guard: when
@@ -163,9 +163,9 @@ use crate::error::Result;
 use crate::geom::PixelProjection;
 use crate::mem::reserve_exact_huge;
 use crate::rays::{HitBatch, RayBatch};
-use crate::scene::{Scene, Stamp, TriangleSoup};
+use crate::scene::{Change, Scene, Stamp, TriangleSoup};
 use crate::tracer::{
-    par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer,
+    par_occlusion_chunks, par_ray_chunks, CostMut, CounterDocs, RayCost, Stats, Tally, Tracer,
 };
 use glam::{Vec3, Vec4};
 use order::View;
@@ -276,6 +276,8 @@ struct Task<'a, const ANY: bool> {
     touched: Vec<u64>,
     touched_list: Vec<u32>,
     st: Counts,
+    /// Per-ray cost, when asked (local ray indices, as `t`/`occ`); see [`Task::charge`].
+    cost: Option<CostMut<'a>>,
     /// Bytes this task allocated (see the module doc's formula).
     peak: u64,
 }
@@ -287,7 +289,7 @@ crate::counters! {
         ray_box,
         /// Ray/triangle tests.
         ray_tri,
-        /// Triangle/box tests (a triangle filtered against a cell: split plane, and edge axes below `sat_threshold`).
+        /// Triangle/box tests (a triangle's min/max list filtered against a split plane).
         tri_box,
         /// Cone/box tests (a conic packet against a cell).
         cone_box,
@@ -301,7 +303,8 @@ crate::counters! {
 crate::counters! {
     /// What a `dacrt` prepare makes.
     pub struct Built {
-        /// Triangles whose per-axis min/max lists were written.
+        /// Triangles whose per-axis min/max lists were written (all of them for a new scene,
+        /// those of the moved or deformed meshes after a change, none when nothing changed).
         triangles,
     }
 }
@@ -318,29 +321,61 @@ impl Tracer for Dacrt {
     }
 
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
-        self.stamp = Stamp::default();
         let tris = scene.triangles();
         let n = tris.len();
-        let huge = self.cfg.huge_pages;
-        for v in &mut self.span {
-            reserve_exact_huge(v, n, huge);
-        }
-        for t in 0..n {
+        let span_of = |t: usize| {
             let [a, b, c] = tris.get(t);
-            let degenerate = a == b && b == c;
-            let (mn, mx) = if degenerate {
+            if a == b && b == c {
+                // Degenerate: an empty span, dropped by the first split.
                 (Vec3::INFINITY, Vec3::NEG_INFINITY)
             } else {
                 (a.min(b).min(c), a.max(b).max(c))
-            };
-            for k in 0..3 {
-                self.span[k].push([mn[k], mx[k]]);
             }
-        }
+        };
+        // The scene prepared before, changed in some meshes (same triangles): only their ranges
+        // of the min/max lists are rewritten. Otherwise all of them, pushed once.
+        let partial = match scene.changes_since(self.stamp) {
+            Change::None => Some(Vec::new()),
+            Change::Meshes { moved, deformed } if self.span[0].len() == n => Some(
+                moved
+                    .iter()
+                    .chain(&deformed)
+                    .map(|&m| scene.mesh_prims(m))
+                    .collect::<Vec<_>>(),
+            ),
+            _ => None,
+        };
+        self.stamp = Stamp::default();
+        let written = match partial {
+            Some(ranges) => {
+                let mut written = 0;
+                for t in ranges.into_iter().flatten() {
+                    let (mn, mx) = span_of(t);
+                    for k in 0..3 {
+                        self.span[k][t] = [mn[k], mx[k]];
+                    }
+                    written += 1;
+                }
+                written
+            }
+            None => {
+                let huge = self.cfg.huge_pages;
+                for v in &mut self.span {
+                    reserve_exact_huge(v, n, huge);
+                }
+                for t in 0..n {
+                    let (mn, mx) = span_of(t);
+                    for k in 0..3 {
+                        self.span[k].push([mn[k], mx[k]]);
+                    }
+                }
+                n
+            }
+        };
         self.stamp = scene.stamp();
         Ok(Stats::prepared(
             &Built {
-                triangles: n as u64,
+                triangles: written as u64,
             },
             self.bytes(),
         ))
@@ -363,7 +398,7 @@ impl Tracer for Dacrt {
         }
         let (plan, packets) = self.plan(rays);
         let tally: Tally<Counts> =
-            par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, _cost| {
+            par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, cost| {
                 self.run_task::<false>(
                     scene,
                     rays,
@@ -375,6 +410,7 @@ impl Tracer for Dacrt {
                     out.u,
                     out.v,
                     &mut [],
+                    cost,
                 )
             });
         Ok(tally.into_stats(rays.len()))
@@ -398,7 +434,7 @@ impl Tracer for Dacrt {
         }
         let (plan, packets) = self.plan(rays);
         let tally: Tally<Counts> =
-            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, _cost| {
+            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, cost| {
                 self.run_task::<true>(
                     scene,
                     rays,
@@ -410,6 +446,7 @@ impl Tracer for Dacrt {
                     &mut [],
                     &mut [],
                     out,
+                    cost,
                 )
             });
         Ok(tally.into_stats(rays.len()))

@@ -3,7 +3,7 @@
 //! records), with the block move that hands the first child's rejects to the second.
 
 use super::Task;
-use crate::geom::{tri_box_edge_axes, Aabb};
+use crate::geom::Aabb;
 
 impl<'a, const ANY: bool> Task<'a, ANY> {
     /// Fills `tri_idx` with the ids of the non-degenerate triangles (degenerate ones have an
@@ -40,27 +40,31 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             k += keep as usize;
         }
         self.st.ray_box += (rend - start) as u64;
+        if let Some(c) = self.cost.as_mut() {
+            // Every ray in the list was tested; those kept entered the cell.
+            for (p, &r) in self.ray_idx[start..rend].iter().enumerate() {
+                c.add(r as usize, (start + p < k) as u64, 1, 0);
+            }
+        }
         k
     }
 
     /// In-place filter of `tri_idx[..nt]` for the child on side `low` of `split`: the split-plane
-    /// test on the min/max lists, plus the edge axes on small streams. Returns the new count and
-    /// how many triangles the plane test would also send to the other child.
+    /// test on the min/max lists. Returns the new count and how many of the `nt` triangles the
+    /// plane test sends to the other child (the other child's count).
     pub(super) fn partition_tris(
         &mut self,
         nt: usize,
         axis: usize,
         split: f32,
         low: bool,
-        child: &Aabb,
     ) -> (usize, usize) {
         let span = self.span[axis];
-        let sat = nt < self.cfg.sat_threshold;
         let mut k = 0;
         let mut other = 0;
-        if !sat {
-            // Large streams: the plane test only, as a branch-free Lomuto partition (see
-            // `partition_rays`: the unconditional swap keeps `[0, k)` kept, `[k, p)` dropped).
+        {
+            // The plane test, as a branch-free Lomuto partition (see `partition_rays`: the
+            // unconditional swap keeps `[0, k)` kept, `[k, p)` dropped).
             let idx = &mut self.tri_idx[..nt];
             for p in 0..nt {
                 if let Some(&f) = idx.get(p + SPLIT_PREFETCH) {
@@ -78,29 +82,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 k += inside as usize;
             }
             self.st.tri_box += nt as u64;
-            return (k, other);
         }
-        let mut sat_tests = 0u64;
-        for p in 0..nt {
-            let t = self.tri_idx[p] as usize;
-            let [l, h] = span[t];
-            let (inside, opposite) = if low {
-                (l <= split, h >= split)
-            } else {
-                (h >= split, l <= split)
-            };
-            other += opposite as usize;
-            let keep = inside
-                && (!sat || {
-                    sat_tests += 1;
-                    tri_box_edge_axes(self.tris.v0[t], self.tris.v1[t], self.tris.v2[t], child)
-                });
-            if keep {
-                self.tri_idx.swap(k, p);
-                k += 1;
-            }
-        }
-        self.st.tri_box += nt as u64 + sat_tests;
         (k, other)
     }
 }

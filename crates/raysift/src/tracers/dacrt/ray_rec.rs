@@ -4,7 +4,7 @@
 
 use super::order::Order;
 use super::partition::gather_block;
-use super::split::half;
+use super::split::{half, no_progress};
 use super::Task;
 use crate::geom::{intersect_triangle, intersect_triangle4, Aabb, PackedRay, Tri4};
 use crate::rays::MISS;
@@ -82,9 +82,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let low_first = self.low_first(axis, split, rend);
         // First child: both lists filtered; what it rejects stays behind its prefixes.
         let child = half(&cell, axis, split, low_first);
-        let (nt0, other) = self.partition_tris(nt, axis, split, low_first, &child);
-        if nt0 == nt && other == nt {
-            // No progress: every triangle straddles the plane (§3.6 guard).
+        let (nt0, other) = self.partition_tris(nt, axis, split, low_first);
+        if no_progress(nt, nt0, other) {
+            // Little progress: (nearly) every triangle straddles the plane (§3.6 guard, ours
+            // widened from "every" to nine in ten).
             return self.leaf(&cell, nt, rend, ord);
         }
         let rend0 = self.partition_rays(&child, rend);
@@ -97,7 +98,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         // `[nt0, nt)` and `[rend0, rend)`. Only the first child's survivors are tested. Rays
         // count as known only when this cell's list was filtered against it.
         let child = half(&cell, axis, split, !low_first);
-        let (k, _) = self.partition_tris(nt0, axis, split, !low_first, &child);
+        let (k, _) = self.partition_tris(nt0, axis, split, !low_first);
         let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
         let rend1 = if filtered {
             let k = self.partition_rays(&child, rend0);
@@ -225,6 +226,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let done = if ANY {
                 let (hit, n) = any_hit(o, d, tmin, self.rays.tmax[i]);
                 tests += n;
+                if let Some(c) = self.cost.as_mut() {
+                    c.add(r, 0, n, n);
+                }
                 if hit {
                     self.occ[r] = true;
                 }
@@ -234,6 +238,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let best = (self.t[r], self.prim[r], self.u[r], self.v[r]);
                 let ((bt, bp, bu, bv), n) = closest(o, d, tmin, best);
                 tests += n;
+                if let Some(c) = self.cost.as_mut() {
+                    c.add(r, 0, n, n);
+                }
                 (self.t[r], self.prim[r], self.u[r], self.v[r]) = (bt, bp, bu, bv);
                 self.recs[p].inv_tmax.w = widen(bt);
                 self.terminate && bp != MISS && Self::final_hit(cell, o, d, tmin, bt, &ord)

@@ -13,7 +13,7 @@ use crate::geom::{ConeQuery, PixelProjection};
 use crate::mem::reserve_exact_huge;
 use crate::rays::{RayBatch, RayLayout, MISS};
 use crate::scene::Scene;
-use crate::tracer::Tally;
+use crate::tracer::{CostMut, Tally};
 use glam::Vec3;
 use std::ops::Range;
 
@@ -98,6 +98,7 @@ impl Dacrt {
         u: &mut [f32],
         v: &mut [f32],
         occ: &mut [bool],
+        cost: Option<CostMut<'_>>,
     ) -> Tally<Counts> {
         let ntri = scene.len();
         let len = range.len();
@@ -172,6 +173,7 @@ impl Dacrt {
             touched: reuse(sc.touched, 0, huge),
             touched_list: reuse(sc.touched_list, 0, huge),
             st: Counts::default(),
+            cost,
             peak: 0,
         };
         let root = scene.bounds();

@@ -10,7 +10,7 @@ use crate::geom::Aabb;
 fn config_defaults_are_the_papers_except_sat() {
     let c: Config = crate::tracers::config_from_opts("dacrt", &[]).unwrap();
     assert_eq!(c, Config::default());
-    assert_eq!((c.r_limit, c.p_limit, c.sat_threshold), (20, 16, 0));
+    assert_eq!((c.r_limit, c.p_limit), (20, 16));
     // Shadow packets off by default (measured slower than rays on 3 of 4 scenes).
     assert_eq!(c.max_shadow_cone_deg, 0.0);
     assert_eq!(

@@ -144,6 +144,14 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         };
         let (tx, ty) = (tile % tw, tile / tw);
         let n = m.count_ones() as u64;
+        if let Some(c) = self.cost.as_mut() {
+            let mut b = m;
+            while b != 0 {
+                let bit = b.trailing_zeros() as usize;
+                b &= b - 1;
+                c.add((ty * 8 + bit / 8) * width + tx * 8 + bit % 8, 0, 1, 1);
+            }
+        }
         while m != 0 {
             let (bits, lanes) = pop4(&mut m);
             let (d, cut) = self.tile_lanes(tile, bits);
