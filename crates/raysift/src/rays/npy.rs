@@ -15,6 +15,7 @@ use super::{HitBatch, Ray, RayBatch, RayLayout};
 use crate::error::{Error, Result};
 use crate::output::write_atomic;
 use npyz::WriterBuilder;
+use std::io::Read;
 use std::path::Path;
 
 /// One record of `hits.npy`.
@@ -32,11 +33,15 @@ pub struct HitRecord {
     pub v: f32,
 }
 
-fn open_npy(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>> {
+fn open_file(path: &Path) -> Result<std::io::BufReader<std::fs::File>> {
     let name = path.display().to_string();
     let f = std::fs::File::open(path).map_err(|e| Error::io(&name, e))?;
-    npyz::NpyFile::new(std::io::BufReader::new(f))
-        .map_err(|e| Error::parse(&name, "header", format!("not a valid .npy file ({e})")))
+    Ok(std::io::BufReader::new(f))
+}
+
+fn open_npy<R: Read>(r: R, name: &str) -> Result<npyz::NpyFile<R>> {
+    npyz::NpyFile::new(r)
+        .map_err(|e| Error::parse(name, "header", format!("not a valid .npy file ({e})")))
 }
 
 fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
@@ -53,7 +58,17 @@ fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
 pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
+    rays_from(open_npy(open_file(path)?, &name)?, &name)
+}
+
+/// Parses and validates the bytes of a rays file ([`read_rays`] without the file system);
+/// `name` names the input in errors. The fuzz targets use it (`fuzz/`).
+pub fn parse_rays(bytes: &[u8], name: &str) -> Result<RayBatch> {
+    rays_from(open_npy(bytes, name)?, name)
+}
+
+fn rays_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<RayBatch> {
+    let name = name.to_string();
     let shape = npy.shape().to_vec();
     if !is_plain(&npy.dtype(), 'f', 4) {
         return Err(Error::parse(
@@ -200,11 +215,19 @@ pub fn write_hits(path: impl AsRef<Path>, hits: &HitBatch) -> Result<()> {
 pub fn read_hits(path: impl AsRef<Path>) -> Result<HitBatch> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
+    hits_from(open_npy(open_file(path)?, &name)?, &name)
+}
+
+/// Parses the bytes of a `hits.npy` file ([`read_hits`] without the file system).
+pub fn parse_hits(bytes: &[u8], name: &str) -> Result<HitBatch> {
+    hits_from(open_npy(bytes, name)?, name)
+}
+
+fn hits_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<HitBatch> {
     let expected = <HitRecord as npyz::AutoSerialize>::default_dtype();
     if npy.dtype() != expected {
         return Err(Error::parse(
-            &name,
+            name,
             "header",
             format!(
                 "dtype is {}, expected {}",
@@ -215,7 +238,7 @@ pub fn read_hits(path: impl AsRef<Path>) -> Result<HitBatch> {
     }
     let recs: Vec<HitRecord> = npy
         .into_vec()
-        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
+        .map_err(|e| Error::parse(name, "data", e.to_string()))?;
     let mut h = HitBatch::new(0);
     for r in recs {
         h.t.push(r.t);
@@ -243,10 +266,18 @@ pub fn write_occlusion(path: impl AsRef<Path>, occluded: &[bool]) -> Result<()> 
 pub fn read_occlusion(path: impl AsRef<Path>) -> Result<Vec<bool>> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
+    occlusion_from(open_npy(open_file(path)?, &name)?, &name)
+}
+
+/// Parses the bytes of an occlusion file ([`read_occlusion`] without the file system).
+pub fn parse_occlusion(bytes: &[u8], name: &str) -> Result<Vec<bool>> {
+    occlusion_from(open_npy(bytes, name)?, name)
+}
+
+fn occlusion_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<Vec<bool>> {
     if !is_plain(&npy.dtype(), 'u', 1) || npy.shape().len() != 1 {
         return Err(Error::parse(
-            &name,
+            name,
             "header",
             format!(
                 "expected a 1-d uint8 array, got {} {:?}",
@@ -257,7 +288,7 @@ pub fn read_occlusion(path: impl AsRef<Path>) -> Result<Vec<bool>> {
     }
     let v: Vec<u8> = npy
         .into_vec()
-        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
+        .map_err(|e| Error::parse(name, "data", e.to_string()))?;
     Ok(v.into_iter().map(|b| b != 0).collect())
 }
 

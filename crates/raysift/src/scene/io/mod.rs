@@ -57,24 +57,64 @@ pub fn detect_format(path: &Path) -> Result<(Format, bool)> {
     Ok((f, gz))
 }
 
-/// Reads a whole file, decompressing gzip when `gz`.
+/// Reads a whole file, decompressing gzip when `gz` (see [`gunzip`]).
 pub fn read_bytes(path: &Path, gz: bool) -> Result<Vec<u8>> {
     let file = path.display().to_string();
     let raw = std::fs::read(path).map_err(|e| Error::io(&file, e))?;
     if !gz {
         return Ok(raw);
     }
+    gunzip(&raw, &file)
+}
+
+/// Decompresses a gzip stream (several members are concatenated, as `gunzip` does); `file`
+/// names the input in errors.
+pub fn gunzip(raw: &[u8], file: &str) -> Result<Vec<u8>> {
     let mut out = Vec::with_capacity(raw.len() * 4);
-    flate2::read::MultiGzDecoder::new(&raw[..])
+    flate2::read::MultiGzDecoder::new(raw)
         .read_to_end(&mut out)
         .map_err(|e| {
             Error::parse(
-                &file,
+                file,
                 format!("gzip stream, decompressed byte {}", out.len()),
                 e.to_string(),
             )
         })?;
     Ok(out)
+}
+
+/// Parses the bytes of a scene file of `format` (already decompressed) into meshes; `file` names
+/// it in errors, `base` is the folder that glTF external buffers are resolved from (`None`:
+/// external buffers are an error, only embedded and GLB buffers load).
+pub fn parse_meshes(
+    format: Format,
+    bytes: &[u8],
+    file: &str,
+    base: Option<&Path>,
+) -> Result<Vec<super::Mesh>> {
+    match format {
+        Format::Obj => obj::parse(bytes, file),
+        Format::Ply => ply::parse(bytes, file),
+        Format::Gltf | Format::Glb => gltf::parse(bytes, file, base),
+        Format::Off => off::parse(bytes, file),
+    }
+}
+
+/// Loads a scene from the bytes of a file named `name`, without touching the file system
+/// (unless `base` is given, for glTF external buffers): the format and gzip come from the name's
+/// extension, as in [`load`], and the result is the same as loading a file with that content.
+/// This is the entry point the fuzz targets use (`fuzz/`).
+pub fn load_bytes(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Scene> {
+    let (format, gz) = detect_format(Path::new(name))?;
+    let inflated;
+    let bytes = if gz {
+        inflated = gunzip(bytes, name)?;
+        &inflated[..]
+    } else {
+        bytes
+    };
+    let meshes = parse_meshes(format, bytes, name, base)?;
+    Scene::from_meshes(name, meshes)
 }
 
 /// Loads a scene file.
@@ -83,11 +123,6 @@ pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
     let (format, gz) = detect_format(path)?;
     let bytes = read_bytes(path, gz)?;
     let name = path.display().to_string();
-    let meshes = match format {
-        Format::Obj => obj::parse(&bytes, &name)?,
-        Format::Ply => ply::parse(&bytes, &name)?,
-        Format::Gltf | Format::Glb => gltf::parse(&bytes, &name, path.parent())?,
-        Format::Off => off::parse(&bytes, &name)?,
-    };
+    let meshes = parse_meshes(format, &bytes, &name, path.parent())?;
     Scene::from_meshes(name, meshes)
 }
