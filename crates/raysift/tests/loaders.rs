@@ -844,3 +844,236 @@ mod no_panic {
         }
     }
 }
+
+// ---------------------------------------------------------------- resource limits and fuzz regressions
+//
+// Each test here failed on the code before its fix (docs/fuzzing.md lists which run or review
+// found it). "Fails quickly" is checked with a deadline on a worker thread, "does not allocate"
+// with the tracking allocator below, which records the largest single allocation made by the
+// calling thread.
+
+mod limits {
+    use super::*;
+    use raysift::rays::npy;
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+    use std::sync::mpsc;
+    use std::time::Duration;
+
+    struct Tracking;
+
+    thread_local! {
+        static LARGEST: Cell<usize> = const { Cell::new(0) };
+    }
+
+    fn note(n: usize) {
+        let _ = LARGEST.try_with(|l| {
+            if n > l.get() {
+                l.set(n)
+            }
+        });
+    }
+
+    unsafe impl GlobalAlloc for Tracking {
+        unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+            note(l.size());
+            unsafe { System.alloc(l) }
+        }
+        unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
+            note(l.size());
+            unsafe { System.alloc_zeroed(l) }
+        }
+        unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+            note(new);
+            unsafe { System.realloc(p, l, new) }
+        }
+        unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+            unsafe { System.dealloc(p, l) }
+        }
+    }
+
+    #[global_allocator]
+    static ALLOC: Tracking = Tracking;
+
+    /// Runs `f` on a worker thread; fails the test if it takes more than `secs` seconds (a
+    /// hang) or panics. Returns `f`'s result and the largest single allocation it made.
+    fn quick<T: Send + 'static>(secs: u64, f: impl FnOnce() -> T + Send + 'static) -> (T, usize) {
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            LARGEST.with(|l| l.set(0));
+            let r = f();
+            let _ = tx.send((r, LARGEST.with(|l| l.get())));
+        });
+        match rx.recv_timeout(Duration::from_secs(secs)) {
+            Ok(r) => r,
+            Err(mpsc::RecvTimeoutError::Timeout) => panic!("still running after {secs} s: a hang"),
+            Err(mpsc::RecvTimeoutError::Disconnected) => panic!("panicked (see above)"),
+        }
+    }
+
+    /// `load` on a file holding `bytes`, within 5 s; the error message and the largest allocation.
+    fn load_fails(dir: &Path, name: &str, bytes: &[u8]) -> (String, usize) {
+        let p = write(dir, name, bytes);
+        let (r, big) = quick(5, move || {
+            load(&p).map(|s| s.len()).map_err(|e| e.to_string())
+        });
+        let e = match r {
+            Ok(n) => panic!("{name}: expected an error, loaded {n} triangles"),
+            Err(e) => e,
+        };
+        assert!(
+            e.contains(&dir.join(name).display().to_string()),
+            "{name}: message does not name the file: {e}"
+        );
+        (e, big)
+    }
+
+    fn npy_bytes(header: &str, data: &[u8]) -> Vec<u8> {
+        let mut h = header.as_bytes().to_vec();
+        while (10 + h.len() + 1) % 64 != 0 {
+            h.push(b' ');
+        }
+        h.push(b'\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend_from_slice(&(h.len() as u16).to_le_bytes());
+        out.extend_from_slice(&h);
+        out.extend_from_slice(data);
+        out
+    }
+
+    fn rays_header(shape: &str) -> String {
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}")
+    }
+
+    /// `read_rays` (and the hits and occlusion readers) on a file, within 5 s.
+    fn npy_fails(dir: &Path, name: &str, bytes: &[u8]) -> (String, usize) {
+        let p = write(dir, name, bytes);
+        let (r, big) = quick(5, move || {
+            let a = npy::read_rays(&p).map(|_| ()).map_err(|e| e.to_string());
+            let b = npy::read_hits(&p).map(|_| ());
+            let c = npy::read_occlusion(&p).map(|_| ());
+            assert!(b.is_err() && c.is_err());
+            a
+        });
+        let e = r.expect_err("expected an error");
+        assert!(
+            e.contains(name),
+            "{name}: message does not name the file: {e}"
+        );
+        (e, big)
+    }
+
+    /// A sparse file of `len` bytes starting with `head` (takes no disk space).
+    fn sparse_file(dir: &Path, name: &str, head: &[u8], len: u64) -> Option<PathBuf> {
+        let p = dir.join(name);
+        let mut f = std::fs::File::create(&p).ok()?;
+        f.write_all(head).ok()?;
+        f.set_len(len).ok()?;
+        Some(p)
+    }
+
+    fn mem_available() -> Option<u64> {
+        let t = std::fs::read_to_string("/proc/meminfo").ok()?;
+        let l = t.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        Some(l.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+    }
+
+    // ---- found by fuzzing and review (docs/fuzzing.md, "Crashes found")
+    #[test]
+    fn fuzz_npy_header_length_of_2gb_is_refused_before_allocating() {
+        // From the npy target's first run: a version 2.0 header declaring 2070151284 bytes made
+        // npyz allocate that much before reading it.
+        let mut b = b"\x93NUMPY\x02\x00".to_vec();
+        b.extend_from_slice(&2_070_151_284u32.to_le_bytes());
+        b.extend_from_slice(b"{'descr': '<f4', 'fortran_order': False, 'shape': (2, 8), }\n");
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = npy_fails(dir.path(), "hdr.npy", &b);
+        assert!(e.contains("header") && e.contains("2070151284"), "{e}");
+        assert!(big < 1 << 20, "allocated {big} bytes");
+    }
+
+    #[test]
+    fn fuzz_npy_shape_product_overflow_is_an_error_not_a_panic() {
+        // npyz multiplies the shape unchecked (overflow panics with overflow checks on, as in
+        // the test profile and the fuzz builds) and so do its strides, even when a zero makes
+        // the product 0.
+        let dir = tempfile::tempdir().unwrap();
+        for (name, shape) in [
+            ("product.npy", "(4294967296, 4294967296, 8)"),
+            ("strides.npy", "(0, 4294967296, 4294967296, 8)"),
+        ] {
+            let (e, _) = npy_fails(dir.path(), name, &npy_bytes(&rays_header(shape), &[]));
+            assert!(e.contains("header"), "{e}");
+        }
+    }
+
+    #[test]
+    fn fuzz_npy_deeply_nested_header_fails_quickly() {
+        // py_literal (npyz's header parser) backtracks exponentially on nested brackets.
+        let dir = tempfile::tempdir().unwrap();
+        let shape = format!("{}{}", "[".repeat(3000), "]".repeat(3000));
+        let (e, _) = npy_fails(
+            dir.path(),
+            "deep.npy",
+            &npy_bytes(&rays_header(&shape), &[]),
+        );
+        assert!(e.contains("header") && e.contains("nested"), "{e}");
+    }
+
+    #[test]
+    fn npy_shape_1e12_rows_fails_before_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = npy_fails(
+            dir.path(),
+            "huge.npy",
+            &npy_bytes(&rays_header("(1000000000000, 8)"), &[0; 64]),
+        );
+        assert!(
+            e.contains("data") && e.contains("32000000000000 bytes") && e.contains("64"),
+            "{e}"
+        );
+        assert!(big < 1 << 16, "allocated {big} bytes");
+        // Trailing bytes after the data the shape declares are an error too.
+        let mut row = Vec::new();
+        for c in [0f32, 0., 0., 1., 0., 0., 0., 1.] {
+            row.extend_from_slice(&c.to_le_bytes());
+        }
+        let ok = npy_bytes(&rays_header("(1, 8)"), &row);
+        assert_eq!(npy::parse_rays(&ok, "ok.npy").unwrap().len(), 1);
+        let mut extra = ok.clone();
+        extra.extend_from_slice(&[0; 4]);
+        let e = npy::parse_rays(&extra, "extra.npy")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("extra.npy: data") && e.contains("4 bytes after"),
+            "{e}"
+        );
+    }
+
+    // ---- limits: memory
+    #[test]
+    fn rays_file_larger_than_memory_is_refused() {
+        let Some(avail) = mem_available() else {
+            eprintln!("SKIPPED: no /proc/meminfo");
+            return;
+        };
+        // A consistent file (shape and length agree) whose rays need twice the available memory.
+        let n = avail / 16; // 32 bytes per ray in memory
+        let head = npy_bytes(&rays_header(&format!("({n}, 8)")), &[]);
+        let dir = tempfile::tempdir().unwrap();
+        let Some(p) = sparse_file(dir.path(), "big.npy", &head, head.len() as u64 + n * 32) else {
+            eprintln!("SKIPPED: cannot make a sparse file");
+            return;
+        };
+        let (r, big) = quick(5, move || {
+            npy::read_rays(&p).map(|_| ()).map_err(|e| e.to_string())
+        });
+        let e = r.unwrap_err();
+        assert!(
+            e.contains("big.npy") && e.contains("MemAvailable") && e.contains("rays"),
+            "{e}"
+        );
+        assert!(big < 1 << 20, "allocated {big} bytes");
+    }
+}

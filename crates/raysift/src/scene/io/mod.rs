@@ -6,6 +6,7 @@
 //! [`Scene::from_meshes`].
 
 pub mod gltf;
+pub mod limits;
 pub mod obj;
 pub mod off;
 pub mod ply;
