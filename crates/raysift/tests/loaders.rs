@@ -1021,6 +1021,87 @@ mod limits {
     }
 
     #[test]
+    fn fuzz_ply_binary_element_without_properties_does_not_hang() {
+        // A binary element with no properties takes no bytes, so a count of 10^18 looped 10^18
+        // times doing nothing.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+element nothing 1000000000000000000\nend_header\n"
+            .to_vec();
+        for c in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+        b.push(3);
+        for i in [0i32, 1, 2] {
+            b.extend_from_slice(&i.to_le_bytes());
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(dir.path(), "noprops.ply", &b);
+        let (s, _) = quick(5, move || {
+            load(&p).map(|s| s.len()).map_err(|e| e.to_string())
+        });
+        assert_eq!(s, Ok(1));
+        // The same in ascii.
+        let mut a = String::from_utf8(b[..b.len() - 49].to_vec()).unwrap();
+        a = a.replace("binary_little_endian", "ascii");
+        a.push_str("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        let p = write(dir.path(), "noprops_ascii.ply", a.as_bytes());
+        let (s, _) = quick(5, move || {
+            load(&p).map(|s| s.len()).map_err(|e| e.to_string())
+        });
+        assert_eq!(s, Ok(1));
+    }
+
+    // ---- limits: counts against bytes
+    #[test]
+    fn ply_header_claiming_1e12_vertices_fails_at_the_header() {
+        let dir = tempfile::tempdir().unwrap();
+        for fmt in ["ascii", "binary_little_endian", "binary_big_endian"] {
+            let mut b = format!(
+                "ply\nformat {fmt} 1.0\nelement vertex 1000000000000\nproperty float x\n\
+property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            b.resize(200, b'0');
+            let (e, big) = load_fails(dir.path(), &format!("{fmt}.ply"), &b);
+            assert!(
+                e.contains("header, element 0 (vertex)") && e.contains("1000000000000"),
+                "{e}"
+            );
+            assert!(e.contains("can hold"), "{e}");
+            assert!(big < 1 << 16, "allocated {big} bytes");
+        }
+        // Any element, not only vertices: 10^15 edges of two ints in a small binary file.
+        let b = b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\n\
+property float y\nproperty float z\nelement edge 1000000000000000\nproperty int a\nproperty int b\nend_header\n";
+        let (e, _) = load_fails(dir.path(), "edges.ply", b);
+        assert!(
+            e.contains("element 1 (edge)") && e.contains("can hold"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn ply_binary_list_size_beyond_the_file_fails_without_allocating() {
+        // Already bounded before this work (the list's bytes are taken from the input before any
+        // item is stored); kept as a check of the rule.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+property float y\nproperty float z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n"
+            .to_vec();
+        let at = b.len() + 36;
+        b.extend_from_slice(&[0; 36]);
+        b.extend_from_slice(&u32::MAX.to_le_bytes());
+        b.extend_from_slice(&[0; 12]);
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = load_fails(dir.path(), "list.ply", &b);
+        assert!(
+            e.contains(&format!("byte {}", at + 4)) && e.contains("face 0"),
+            "{e}"
+        );
+        assert!(big < 1 << 16, "allocated {big} bytes");
+    }
+
+    #[test]
     fn npy_shape_1e12_rows_fails_before_reading() {
         let dir = tempfile::tempdir().unwrap();
         let (e, big) = npy_fails(
