@@ -1102,6 +1102,24 @@ property float y\nproperty float z\nelement face 1\nproperty list uint int verte
     }
 
     #[test]
+    fn off_counts_beyond_the_file_fail_at_the_counts_line() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, text) in [
+            ("v.off", "OFF\n3000000000 1 0\n0 0 0\n"),
+            (
+                "f.off",
+                "OFF 3 1000000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+            ),
+        ] {
+            let (e, big) = load_fails(dir.path(), name, text.as_bytes());
+            assert!(e.contains("can hold"), "{e}");
+            let line = if name == "v.off" { "line 2" } else { "line 1" };
+            assert!(e.contains(line), "{e}");
+            assert!(big < 1 << 16, "allocated {big} bytes");
+        }
+    }
+
+    #[test]
     fn npy_shape_1e12_rows_fails_before_reading() {
         let dir = tempfile::tempdir().unwrap();
         let (e, big) = npy_fails(
