@@ -1150,6 +1150,27 @@ property float y\nproperty float z\nelement face 1\nproperty list uint int verte
         );
     }
 
+    // ---- limits: gzip
+    #[test]
+    fn gzip_bomb_is_refused_at_the_cap() {
+        // About 1 KB of gzip inflating to 1 MB of OBJ comment lines: above the cap
+        // (64 x 1 KB + 64 KiB), so refused while inflating, naming the file.
+        let text = format!("v 0 0 0\n{}", "#".repeat(1 << 20));
+        let gz = gzip(text.as_bytes());
+        assert!(gz.len() < 1500, "{}", gz.len());
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = load_fails(dir.path(), "bomb.obj.gz", &gz);
+        let cap = 64 * gz.len() + (64 << 10);
+        assert!(
+            e.contains("gzip") && e.contains(&format!("more than {cap} bytes")),
+            "{e}"
+        );
+        assert!(big <= 2 * cap, "allocated {big} bytes for a cap of {cap}");
+        // A real mesh's ratio (3-6x) is far below the cap.
+        let ok = gzip(ply_ascii().as_bytes());
+        assert!(load(write(dir.path(), "ok.ply.gz", &ok)).is_ok());
+    }
+
     // ---- limits: memory
     #[test]
     fn rays_file_larger_than_memory_is_refused() {
@@ -1173,6 +1194,23 @@ property float y\nproperty float z\nelement face 1\nproperty list uint int verte
             e.contains("big.npy") && e.contains("MemAvailable") && e.contains("rays"),
             "{e}"
         );
+        assert!(big < 1 << 20, "allocated {big} bytes");
+    }
+
+    #[test]
+    fn scene_file_larger_than_memory_is_refused() {
+        let Some(avail) = mem_available() else {
+            eprintln!("SKIPPED: no /proc/meminfo");
+            return;
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let Some(p) = sparse_file(dir.path(), "big.ply", b"ply\n", avail * 2) else {
+            eprintln!("SKIPPED: cannot make a sparse file");
+            return;
+        };
+        let (r, big) = quick(5, move || load(&p).map(|_| ()).map_err(|e| e.to_string()));
+        let e = r.unwrap_err();
+        assert!(e.contains("big.ply") && e.contains("MemAvailable"), "{e}");
         assert!(big < 1 << 20, "allocated {big} bytes");
     }
 }
