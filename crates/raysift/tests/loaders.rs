@@ -1052,6 +1052,56 @@ element nothing 1000000000000000000\nend_header\n"
         assert_eq!(s, Ok(1));
     }
 
+    #[test]
+    fn fuzz_gltf_sparse_accessor_without_view_does_not_allocate_hundreds_of_mb() {
+        // A 712-byte file: a sparse u8 index accessor of count 16,000,000 with no bufferView
+        // (all zeros) passed the old bound (16 x buffer bytes + 16 MiB) and made a 512 MB
+        // element list.
+        let mut buf = Vec::new();
+        for c in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
+            buf.extend_from_slice(&c.to_le_bytes());
+        }
+        buf.extend_from_slice(&[0, 0, 0, 0]);
+        let json = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "mode": 5}}]}}],
+  "buffers": [{{"byteLength": 40, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 1}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"componentType": 5121, "count": 16000000, "type": "SCALAR",
+      "sparse": {{"count": 1, "indices": {{"bufferView": 1, "componentType": 5121}}, "values": {{"bufferView": 1}}}}}}]}}"#,
+            base64(&buf)
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = load_fails(dir.path(), "sparse.gltf", json.as_bytes());
+        assert!(
+            e.contains("accessors[1]") && e.contains("implausibly large"),
+            "{e}"
+        );
+        assert!(big < 4 << 20, "allocated {big} bytes");
+    }
+
+    #[test]
+    fn gltf_external_buffer_must_be_a_regular_file() {
+        // A buffer URI naming a FIFO (or a device such as /dev/zero) blocked or read forever.
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe.bin");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success());
+        if !ok {
+            eprintln!("SKIPPED: mkfifo not available");
+            return;
+        }
+        let json = gltf_json(r#"{"byteLength": 60, "uri": "pipe.bin"}"#);
+        let (e, _) = load_fails(dir.path(), "fifo.gltf", json.as_bytes());
+        assert!(
+            e.contains("buffers[0]") && e.contains("regular file"),
+            "{e}"
+        );
+    }
+
     // ---- limits: counts against bytes
     #[test]
     fn ply_header_claiming_1e12_vertices_fails_at_the_header() {
