@@ -1102,6 +1102,37 @@ element nothing 1000000000000000000\nend_header\n"
         );
     }
 
+    #[test]
+    fn gltf_instances_beyond_memory_are_refused_before_copying() {
+        // Instancing legitimately multiplies a file's triangles, so the bound is memory: one
+        // TRIANGLE_FAN mesh of 65536 vertices (65534 triangles, all at the origin) in a GLB's
+        // BIN chunk, and enough nodes instancing it to need twice the available memory. Before
+        // the budget, every instance was copied until memory ran out.
+        let Some(avail) = mem_available() else {
+            eprintln!("SKIPPED: no /proc/meminfo");
+            return;
+        };
+        let nv = 65536u64;
+        let per = nv * 12 + (nv - 2) * 48;
+        let nodes = (2 * avail / per + 1) as usize;
+        let list: Vec<String> = (0..nodes).map(|i| i.to_string()).collect();
+        let json = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [{}]}}],
+  "nodes": [{}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "mode": 6}}]}}],
+  "buffers": [{{"byteLength": {b}}}], "bufferViews": [{{"buffer": 0, "byteLength": {b}}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": {nv}, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0]}}]}}"#,
+            list.join(","),
+            vec![r#"{"mesh": 0}"#; nodes].join(","),
+            b = nv * 12
+        );
+        let g = glb(&json, &vec![0u8; (nv * 12) as usize]);
+        let dir = tempfile::tempdir().unwrap();
+        let (e, big) = load_fails(dir.path(), "instances.glb", &g);
+        assert!(e.contains("nodes[") && e.contains("MemAvailable"), "{e}");
+        assert!(big < 64 << 20, "allocated {big} bytes");
+    }
+
     // ---- limits: counts against bytes
     #[test]
     fn ply_header_claiming_1e12_vertices_fails_at_the_header() {

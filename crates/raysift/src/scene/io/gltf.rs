@@ -28,8 +28,9 @@
 //! block on or read forever) that fits in memory. Instancing (many nodes sharing one mesh) and
 //! accessors sharing bytes legitimately describe scenes far larger than the file, so the decoded
 //! output is bounded by the scene's own limit (fewer than 2^32 - 1 triangles) and by the
-//! available memory (12 bytes per vertex, 48 per triangle with the world soup), checked before
-//! each mesh is decoded or instanced, not by a ratio.
+//! available memory (12 bytes per vertex, 48 per triangle with the world soup), not by a ratio:
+//! each primitive is counted before its triangles are built, and every instance before any
+//! instance is copied.
 
 use super::limits;
 use crate::error::{Error, Result};
@@ -78,7 +79,7 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
         file,
         buffers: &buffers,
         cache: HashMap::new(),
-        out: Vec::new(),
+        pending: Vec::new(),
         mem: limits::mem_available(),
         vertices: 0,
         triangles: 0,
@@ -101,7 +102,7 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
     for roots in traversals {
         builder.traverse(roots, doc.nodes().len())?;
     }
-    Ok(builder.out)
+    Ok(builder.finish())
 }
 
 /// Splits a GLB container into its JSON chunk and optional BIN chunk (spec section 4.4).
@@ -319,7 +320,8 @@ struct Builder<'a> {
     buffers: &'a [gltf::buffer::Data],
     /// Decoded meshes by glTF mesh index, so instances decode once.
     cache: HashMap<usize, (Vec<Vec3>, Vec<[u32; 3]>)>,
-    out: Vec<Mesh>,
+    /// Instances to build: mesh name, glTF mesh index, world transform.
+    pending: Vec<(String, usize, Mat4)>,
     /// Available memory, read once ([`limits::mem_available`]).
     mem: Option<u64>,
     /// Vertices and triangles decoded or instanced so far (the budget in the module doc).
@@ -383,7 +385,8 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    /// Adds the node's mesh, if any, as one [`Mesh`] with the node's world transform.
+    /// Records the node's mesh, if any, as one instance with the node's world transform (made a
+    /// [`Mesh`] by [`Self::finish`]), decoding the mesh the first time.
     fn instance(&mut self, node: &gltf::Node, world: Mat4) -> Result<()> {
         let Some(mesh) = node.mesh() else {
             return Ok(());
@@ -399,8 +402,7 @@ impl<'a> Builder<'a> {
         if nt > 0 {
             self.spend(&format!("nodes[{}]", node.index()), nv, nt)?;
         }
-        let (positions, indices) = &self.cache[&mesh.index()];
-        if !indices.is_empty() {
+        if nt > 0 {
             let node_name = node
                 .name()
                 .map(str::to_string)
@@ -409,20 +411,28 @@ impl<'a> Builder<'a> {
                 .name()
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("mesh {}", mesh.index()));
-            let mut m = Mesh::new(
-                format!("{node_name}/{mesh_name}"),
-                positions.clone(),
-                indices.clone(),
-            );
-            m.transform = Affine3A::from_mat4(world);
-            self.out.push(m);
+            self.pending
+                .push((format!("{node_name}/{mesh_name}"), mesh.index(), world));
         }
         Ok(())
     }
 
+    /// The instances as meshes, in traversal order. Called after every instance has been
+    /// counted against the budget, so nothing is copied for a scene that is refused.
+    fn finish(mut self) -> Vec<Mesh> {
+        let mut out = Vec::with_capacity(self.pending.len());
+        for (name, mesh, world) in std::mem::take(&mut self.pending) {
+            let (positions, indices) = &self.cache[&mesh];
+            let mut m = Mesh::new(name, positions.clone(), indices.clone());
+            m.transform = Affine3A::from_mat4(world);
+            out.push(m);
+        }
+        out
+    }
+
     /// Decodes a mesh's triangle primitives. Its triangles are counted against the budget as
-    /// they are decoded and given back afterwards: only instances (in [`Self::instance`]) keep
-    /// them.
+    /// they are decoded and given back afterwards: the instances (in [`Self::instance`]) are
+    /// what the scene keeps.
     fn decode_mesh(&mut self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
         let (v0, t0) = (self.vertices, self.triangles);
         let r = self.decode_mesh_counted(mesh);
