@@ -74,11 +74,231 @@ pub struct NormalHitRecord {
     pub ng: [f32; 3],
 }
 
-fn open_npy(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>> {
+/// The longest `.npy` header (its Python dict literal) accepted, in bytes: numpy.load's own
+/// default `max_header_size`. raysift's files have headers of about 120 bytes.
+pub const MAX_HEADER: usize = 10_000;
+
+/// The deepest bracket nesting accepted in a header: a structured dtype with a subarray field
+/// needs 4 (`{[((`), raysift's own files 3. npyz's header parser (py_literal, on pest)
+/// backtracks exponentially on nested brackets: a 10 KB header of `{}` nested 5 deep takes
+/// 0.4 s, 8 deep 6 s, 10 deep 42 s.
+pub const MAX_HEADER_NESTING: usize = 4;
+
+/// An opened `.npy` input: npyz's reader positioned at the data, and the number of data bytes
+/// after the header.
+struct Opened<R: Read> {
+    npy: npyz::NpyFile<std::io::Chain<std::io::Cursor<Vec<u8>>, R>>,
+    data_len: u64,
+}
+
+fn open_file(path: &Path) -> Result<(std::io::BufReader<std::fs::File>, u64)> {
     let name = path.display().to_string();
     let f = std::fs::File::open(path).map_err(|e| Error::io(&name, e))?;
-    npyz::NpyFile::new(std::io::BufReader::new(f))
-        .map_err(|e| Error::parse(&name, "header", format!("not a valid .npy file ({e})")))
+    let len = f.metadata().map_err(|e| Error::io(&name, e))?.len();
+    Ok((std::io::BufReader::new(f), len))
+}
+
+/// Reads the fixed part and the header text of a `.npy` stream of `total_len` bytes and checks
+/// them before npyz sees them: npyz allocates the header length the file declares (up to
+/// 4 GiB), multiplies the shape unchecked (an overflow panic with overflow checks on) and
+/// parses the header with exponential backtracking on nested brackets. Then hands npyz the
+/// same bytes.
+fn open_npy<R: Read>(mut r: R, total_len: u64, name: &str) -> Result<Opened<R>> {
+    let err = |msg: String| Error::parse(name, "header", msg);
+    let mut pre = vec![0u8; 8];
+    r.read_exact(&mut pre)
+        .map_err(|_| err("not a valid .npy file (shorter than its 8-byte magic)".into()))?;
+    if &pre[..6] != b"\x93NUMPY" {
+        return Err(err(
+            "not a valid .npy file (it does not start with \\x93NUMPY)".into(),
+        ));
+    }
+    let len_bytes = match (pre[6], pre[7]) {
+        (1, 0) => 2,
+        (2, 0) | (3, 0) => 4,
+        (a, b) => {
+            return Err(err(format!(
+                "not a valid .npy file (unsupported format version {a}.{b})"
+            )))
+        }
+    };
+    let mut lb = [0u8; 4];
+    r.read_exact(&mut lb[..len_bytes])
+        .map_err(|_| err("not a valid .npy file (truncated before the header length)".into()))?;
+    pre.extend_from_slice(&lb[..len_bytes]);
+    let header_len = u32::from_le_bytes(lb) as usize;
+    if header_len > MAX_HEADER {
+        return Err(err(format!(
+            "the file declares a header of {header_len} bytes; at most {MAX_HEADER} are accepted (numpy.load's default max_header_size)"
+        )));
+    }
+    let start = pre.len() as u64 + header_len as u64;
+    if start > total_len {
+        return Err(err(format!(
+            "the file declares a header of {header_len} bytes but has only {} after the first {}",
+            total_len - pre.len() as u64,
+            pre.len()
+        )));
+    }
+    let mut text = vec![0u8; header_len];
+    r.read_exact(&mut text)
+        .map_err(|e| err(format!("cannot read the {header_len}-byte header: {e}")))?;
+    precheck_header(&text).map_err(err)?;
+    pre.extend_from_slice(&text);
+    let npy = npyz::NpyFile::new(std::io::Cursor::new(pre).chain(r))
+        .map_err(|e| err(format!("not a valid .npy file ({e})")))?;
+    Ok(Opened {
+        npy,
+        data_len: total_len - start,
+    })
+}
+
+/// Bounds what npyz would otherwise panic or stall on, with a small scan of the header text
+/// (Python literal; strings skipped): bracket nesting at most [`MAX_HEADER_NESTING`], every
+/// integer literal at most `u64::MAX`, and the product of all integer literals (each counted as
+/// at least 2) at most `u64::MAX`. The last bounds every partial product of the shape whatever
+/// `+`/`-` expressions its dimensions are written as, so npyz's unchecked shape and stride
+/// products cannot overflow; real headers (a shape and a dtype) are far below it.
+fn precheck_header(text: &[u8]) -> std::result::Result<(), String> {
+    let mut depth = 0usize;
+    let mut bound: u128 = 1;
+    let mut i = 0;
+    let ident = |c: u8| c.is_ascii_alphanumeric() || c == b'_';
+    while i < text.len() {
+        let c = text[i];
+        match c {
+            b'\'' | b'"' => {
+                let q = if text[i..].starts_with(&[c, c, c]) {
+                    3
+                } else {
+                    1
+                };
+                i += q;
+                while i < text.len() {
+                    if text[i] == b'\\' {
+                        i += 2;
+                    } else if text[i] == c && text[i..].starts_with(&[c, c, c][..q]) {
+                        i += q;
+                        break;
+                    } else {
+                        i += 1;
+                    }
+                }
+            }
+            b'(' | b'[' | b'{' => {
+                depth += 1;
+                if depth > MAX_HEADER_NESTING {
+                    return Err(format!(
+                        "brackets nested deeper than {MAX_HEADER_NESTING} levels in the header"
+                    ));
+                }
+                i += 1;
+            }
+            b')' | b']' | b'}' => {
+                depth = depth.saturating_sub(1);
+                i += 1;
+            }
+            b'0'..=b'9' if i == 0 || !ident(text[i - 1]) => {
+                let s = i;
+                while i < text.len() && (ident(text[i]) || text[i] == b'.') {
+                    i += 1;
+                }
+                let tok = &text[s..i];
+                if let Some(v) = int_literal(tok) {
+                    let v = v.ok_or_else(|| {
+                        format!(
+                            "number {} in the header is larger than 2^64",
+                            String::from_utf8_lossy(&tok[..tok.len().min(40)])
+                        )
+                    })?;
+                    bound = bound.saturating_mul(v.max(2) as u128);
+                    if bound > u64::MAX as u128 {
+                        return Err(
+                            "the shape's dimensions multiply past 2^64 (no file holds that many elements)"
+                                .into(),
+                        );
+                    }
+                }
+            }
+            _ => i += 1,
+        }
+    }
+    Ok(())
+}
+
+/// A Python integer literal (`12`, `1_000`, `0x1F`, `0o7`, `0b1`): `Some(Some(v))`,
+/// `Some(None)` when it exceeds `u64::MAX`, `None` when `tok` is not an integer (a float).
+fn int_literal(tok: &[u8]) -> Option<Option<u64>> {
+    let (radix, digits) = match tok {
+        [b'0', b'x' | b'X', rest @ ..] => (16, rest),
+        [b'0', b'o' | b'O', rest @ ..] => (8, rest),
+        [b'0', b'b' | b'B', rest @ ..] => (2, rest),
+        _ => (10, tok),
+    };
+    let mut v: u64 = 0;
+    let mut any = false;
+    let mut overflow = false;
+    for &d in digits {
+        if d == b'_' {
+            continue;
+        }
+        let x = (d as char).to_digit(radix)?;
+        any = true;
+        match v
+            .checked_mul(radix as u64)
+            .and_then(|v| v.checked_add(x as u64))
+        {
+            Some(n) => v = n,
+            None => overflow = true,
+        }
+    }
+    if !any {
+        return None;
+    }
+    Some((!overflow).then_some(v))
+}
+
+/// Checks that the data after the header is exactly `count` items of `item` bytes (what the
+/// header's shape declares), and that `mem_each` bytes per item fit in memory, before anything
+/// is read or reserved.
+fn check_sizes<R: Read>(
+    o: &Opened<R>,
+    name: &str,
+    count: u64,
+    item: u64,
+    what: &str,
+    mem_each: u64,
+) -> Result<()> {
+    let shape = o.npy.shape();
+    let need = count
+        .checked_mul(item)
+        .ok_or_else(|| Error::parse(name, "header", format!("shape {shape:?} too large")))?;
+    if need > o.data_len {
+        return Err(Error::parse(
+            name,
+            "data",
+            format!(
+                "the header's shape {shape:?} needs {need} bytes of data but the file has {} after its header (truncated, or a wrong shape)",
+                o.data_len
+            ),
+        ));
+    }
+    if need < o.data_len {
+        return Err(Error::parse(
+            name,
+            "data",
+            format!(
+                "{} bytes after the {need} bytes of data the header's shape {shape:?} declares (wrong shape?)",
+                o.data_len - need
+            ),
+        ));
+    }
+    crate::scene::io::limits::check_memory(
+        name,
+        "header",
+        &format!("the {count} {what} ({mem_each} bytes each in memory)"),
+        count.saturating_mul(mem_each),
+    )
 }
 
 fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
@@ -95,7 +315,19 @@ fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
 pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
+    let (f, len) = open_file(path)?;
+    rays_from(open_npy(f, len, &name)?, &name)
+}
+
+/// Parses and validates the bytes of a rays file ([`read_rays`] without the file system);
+/// `name` names the input in errors. The fuzz targets use it (`fuzz/`).
+pub fn parse_rays(bytes: &[u8], name: &str) -> Result<RayBatch> {
+    rays_from(open_npy(bytes, bytes.len() as u64, name)?, name)
+}
+
+fn rays_from<R: Read>(o: Opened<R>, name: &str) -> Result<RayBatch> {
+    let name = name.to_string();
+    let npy = &o.npy;
     let shape = npy.shape().to_vec();
     let float64 = is_plain(&npy.dtype(), 'f', 8);
     if !float64 && !is_plain(&npy.dtype(), 'f', 4) {
@@ -136,34 +368,53 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     }
     let n = shape[..shape.len() - 1]
         .iter()
-        .try_fold(1usize, |a, &x| a.checked_mul(x as usize))
+        .try_fold(1u64, |a, &x| a.checked_mul(x))
+        .filter(|&n| usize::try_from(n).is_ok())
         .ok_or_else(|| Error::parse(&name, "header", format!("shape {shape:?} too large")))?;
     let w = cols as usize;
-    let data: Vec<f32> = if float64 {
-        f64_ray_values(npy, &name, n, w)?
-    } else {
-        npy.into_vec().map_err(|e| {
-            Error::parse(
-                &name,
-                "data",
-                format!("expected {n} rows of {w} float32 values: {e}"),
-            )
-        })?
-    };
-    if data.len() != n * w {
-        return Err(Error::parse(
-            &name,
-            "data",
-            format!("expected {} values, found {}", n * w, data.len()),
-        ));
-    }
-    let mut rays = RayBatch::with_capacity(n);
+    let item = if float64 { 8 } else { 4 };
+    // 32 bytes per ray in a RayBatch, whatever the file's 6 or 8 columns.
+    check_sizes(&o, &name, n, item * cols, "rays", 32)?;
+    let n = n as usize;
     // Where a bad value is: the row, or the pixel of an image-shaped array.
     let place = |i: usize| match image {
         Some((iw, _)) => format!("pixel [{}, {}]", i / iw as usize, i % iw as usize),
         None => format!("row {i}"),
     };
-    for (i, row) in data.chunks_exact(w).enumerate() {
+    // Streamed row by row into the batch: the file's values are never held twice. float64
+    // files are converted once, value by value (round to nearest: raysift traces in float32, as
+    // Embree does); a finite value beyond float32's range is an error, since it would become
+    // infinite.
+    let header_err = |e: npyz::DTypeError| Error::parse(&name, "header", e.to_string());
+    let mut values: Box<dyn Iterator<Item = std::io::Result<f64>>> = if float64 {
+        Box::new(o.npy.data::<f64>().map_err(header_err)?)
+    } else {
+        Box::new(
+            o.npy
+                .data::<f32>()
+                .map_err(header_err)?
+                .map(|r| r.map(f64::from)),
+        )
+    };
+    let mut rays = RayBatch::with_capacity(n);
+    let mut row = [0f32; 8];
+    for i in 0..n {
+        for x in row.iter_mut().take(w) {
+            *x = match values.next() {
+                Some(Ok(v)) if v.is_finite() && !(v as f32).is_finite() => {
+                    return Err(Error::parse(
+                        &name,
+                        place(i),
+                        format!("value {v:e} is beyond float32's range"),
+                    ))
+                }
+                Some(Ok(v)) => v as f32,
+                Some(Err(e)) => {
+                    return Err(Error::parse(&name, place(i), format!("read error: {e}")))
+                }
+                None => return Err(Error::parse(&name, place(i), "unexpected end of data")),
+            };
+        }
         let (tmin, tmax) = if w == 8 {
             (row[6], row[7])
         } else {
@@ -191,39 +442,6 @@ pub fn read_rays(path: impl AsRef<Path>) -> Result<RayBatch> {
     }
     rays.layout = rays.detect_layout(image);
     Ok(rays)
-}
-
-/// The values of a float64 rays file, converted once to float32 (round to nearest: raysift
-/// traces in float32, as Embree does). A finite value beyond float32's range is an error, since it
-/// would become infinite; NaN and infinities pass through to [`read_rays`]'s checks.
-fn f64_ray_values<R: Read>(
-    npy: npyz::NpyFile<R>,
-    name: &str,
-    n: usize,
-    w: usize,
-) -> Result<Vec<f32>> {
-    let data: Vec<f64> = npy.into_vec().map_err(|e| {
-        Error::parse(
-            name,
-            "data",
-            format!("expected {n} rows of {w} float64 values: {e}"),
-        )
-    })?;
-    data.iter()
-        .enumerate()
-        .map(|(k, &x)| {
-            let y = x as f32;
-            if x.is_finite() && !y.is_finite() {
-                Err(Error::parse(
-                    name,
-                    format!("ray {}", k / w),
-                    format!("value {x} is beyond float32's range"),
-                ))
-            } else {
-                Ok(y)
-            }
-        })
-        .collect()
 }
 
 /// Writes rays as float32 `(N, 8)`, or `(H, W, 8)` for pinhole batches (so readers recover the
@@ -316,18 +534,24 @@ fn write_records<T: npyz::AutoSerialize>(
 pub fn read_hits(path: impl AsRef<Path>) -> Result<HitBatch> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    hits_from(open_npy(path)?, &name)
+    let (f, len) = open_file(path)?;
+    hits_from(open_npy(f, len, &name)?, &name)
 }
 
-fn hits_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<HitBatch> {
+/// Parses the bytes of a `hits.npy` file ([`read_hits`] without the file system).
+pub fn parse_hits(bytes: &[u8], name: &str) -> Result<HitBatch> {
+    hits_from(open_npy(bytes, bytes.len() as u64, name)?, name)
+}
+
+fn hits_from<R: Read>(o: Opened<R>, name: &str) -> Result<HitBatch> {
     use npyz::AutoSerialize;
-    let dtype = npy.dtype();
+    let dtype = o.npy.dtype();
     if dtype == GeomHitRecord::default_dtype() {
-        hit_records(npy, name, |r: &GeomHitRecord| (r.t, r.prim, r.u, r.v))
+        hit_records(o, name, 20, |r: &GeomHitRecord| (r.t, r.prim, r.u, r.v))
     } else if dtype == NormalHitRecord::default_dtype() {
-        hit_records(npy, name, |r: &NormalHitRecord| (r.t, r.prim, r.u, r.v))
+        hit_records(o, name, 32, |r: &NormalHitRecord| (r.t, r.prim, r.u, r.v))
     } else if dtype == HitRecord::default_dtype() {
-        hit_records(npy, name, |r: &HitRecord| (r.t, r.prim, r.u, r.v))
+        hit_records(o, name, 16, |r: &HitRecord| (r.t, r.prim, r.u, r.v))
     } else {
         Err(Error::parse(
             name,
@@ -342,18 +566,27 @@ fn hits_from<R: Read>(npy: npyz::NpyFile<R>, name: &str) -> Result<HitBatch> {
     }
 }
 
-/// The `(t, prim, u, v)` of every record of type `T`.
+/// The `(t, prim, u, v)` of every record of type `T` (`size` bytes each in the file), streamed.
 fn hit_records<T: npyz::Deserialize, R: Read>(
-    npy: npyz::NpyFile<R>,
+    o: Opened<R>,
     name: &str,
+    size: u64,
     fields: impl Fn(&T) -> (f32, u32, f32, f32),
 ) -> Result<HitBatch> {
-    let recs: Vec<T> = npy
-        .into_vec()
-        .map_err(|e| Error::parse(name, "data", e.to_string()))?;
+    check_sizes(&o, name, o.npy.len(), size, "hits", 16)?;
+    let n = o.npy.len() as usize;
     let mut h = HitBatch::new(0);
-    for r in &recs {
-        let (t, prim, u, v) = fields(r);
+    for v in [&mut h.t, &mut h.u, &mut h.v] {
+        v.reserve_exact(n);
+    }
+    h.prim.reserve_exact(n);
+    let recs = o
+        .npy
+        .data::<T>()
+        .map_err(|e| Error::parse(name, "header", e.to_string()))?;
+    for (i, r) in recs.enumerate() {
+        let r = r.map_err(|e| Error::parse(name, format!("record {i}"), e.to_string()))?;
+        let (t, prim, u, v) = fields(&r);
         h.t.push(t);
         h.prim.push(prim);
         h.u.push(u);
@@ -379,22 +612,38 @@ pub fn write_occlusion(path: impl AsRef<Path>, occluded: &[bool]) -> Result<()> 
 pub fn read_occlusion(path: impl AsRef<Path>) -> Result<Vec<bool>> {
     let path = path.as_ref();
     let name = path.display().to_string();
-    let npy = open_npy(path)?;
-    if !is_plain(&npy.dtype(), 'u', 1) || npy.shape().len() != 1 {
+    let (f, len) = open_file(path)?;
+    occlusion_from(open_npy(f, len, &name)?, &name)
+}
+
+/// Parses the bytes of an occlusion file ([`read_occlusion`] without the file system).
+pub fn parse_occlusion(bytes: &[u8], name: &str) -> Result<Vec<bool>> {
+    occlusion_from(open_npy(bytes, bytes.len() as u64, name)?, name)
+}
+
+fn occlusion_from<R: Read>(o: Opened<R>, name: &str) -> Result<Vec<bool>> {
+    if !is_plain(&o.npy.dtype(), 'u', 1) || o.npy.shape().len() != 1 {
         return Err(Error::parse(
-            &name,
+            name,
             "header",
             format!(
                 "expected a 1-d uint8 array, got {} {:?}",
-                npy.dtype().descr(),
-                npy.shape()
+                o.npy.dtype().descr(),
+                o.npy.shape()
             ),
         ));
     }
-    let v: Vec<u8> = npy
-        .into_vec()
-        .map_err(|e| Error::parse(&name, "data", e.to_string()))?;
-    Ok(v.into_iter().map(|b| b != 0).collect())
+    check_sizes(&o, name, o.npy.len(), 1, "occlusion flags", 1)?;
+    let mut out = Vec::with_capacity(o.npy.len() as usize);
+    let flags = o
+        .npy
+        .data::<u8>()
+        .map_err(|e| Error::parse(name, "header", e.to_string()))?;
+    for (i, b) in flags.enumerate() {
+        let b = b.map_err(|e| Error::parse(name, format!("element {i}"), e.to_string()))?;
+        out.push(b != 0);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -520,7 +769,10 @@ mod tests {
             .unwrap();
         w.finish().unwrap();
         let e = read_rays(&p).unwrap_err().to_string();
-        assert!(e.contains("ray 1") && e.contains("float32"), "{e}");
+        assert!(
+            e.contains("row 1") && e.contains("1e300") && e.contains("float32"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -20,7 +20,19 @@
 //! stack), a node reached twice in one scene is an error (glTF nodes form trees), and a sparse
 //! accessor without a `bufferView` is bounded by the file's data size, so hostile counts fail
 //! cleanly instead of exhausting memory.
+//!
+//! Limits: an accessor must fit in its buffer view and a view in its buffer (checked before
+//! decoding); a sparse accessor without a `bufferView` (implicit zeros, nothing in the file
+//! behind them) may decode to at most 16 bytes per byte of buffer data plus 64 KiB; an external
+//! buffer must be a regular file (not a FIFO or a device such as `/dev/zero`, which `gltf` would
+//! block on or read forever) that fits in memory. Instancing (many nodes sharing one mesh) and
+//! accessors sharing bytes legitimately describe scenes far larger than the file, so the decoded
+//! output is bounded by the scene's own limit (fewer than 2^32 - 1 triangles) and by the
+//! available memory (12 bytes per vertex, 48 per triangle with the world soup), not by a ratio:
+//! each primitive is counted before its triangles are built, and every instance before any
+//! instance is copied.
 
+use super::limits;
 use crate::error::{Error, Result};
 use crate::scene::Mesh;
 use glam::{Affine3A, Mat4, Vec3};
@@ -67,7 +79,10 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
         file,
         buffers: &buffers,
         cache: HashMap::new(),
-        out: Vec::new(),
+        pending: Vec::new(),
+        mem: limits::mem_available(),
+        vertices: 0,
+        triangles: 0,
     };
     // One list of root nodes per traversal (a node may appear in several scenes).
     let traversals: Vec<Vec<gltf::Node>> = if let Some(scene) = doc.default_scene() {
@@ -87,7 +102,7 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
     for roots in traversals {
         builder.traverse(roots, doc.nodes().len())?;
     }
-    Ok(builder.out)
+    Ok(builder.finish())
 }
 
 /// Splits a GLB container into its JSON chunk and optional BIN chunk (spec section 4.4).
@@ -195,6 +210,12 @@ fn precheck(root: &json::Root, file: &str) -> Result<()> {
 
 /// True when `%xx` escapes in `s` decode to valid UTF-8.
 fn percent_decodes(s: &str) -> bool {
+    percent_decode(s).is_some()
+}
+
+/// `s` with its `%xx` escapes decoded (a `%` not followed by two hex digits stays as it is, as
+/// `gltf`'s decoder does), or `None` when the result is not UTF-8.
+fn percent_decode(s: &str) -> Option<String> {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -219,7 +240,7 @@ fn percent_decodes(s: &str) -> bool {
         }
         i += 1;
     }
-    std::str::from_utf8(&out).is_ok()
+    String::from_utf8(out).ok()
 }
 
 fn load_buffers(
@@ -231,6 +252,9 @@ fn load_buffers(
     let mut out = Vec::new();
     for buffer in doc.buffers() {
         let place = format!("buffers[{}]", buffer.index());
+        if let gltf::buffer::Source::Uri(uri) = buffer.source() {
+            check_external(uri, base, file, &place)?;
+        }
         let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
             .map_err(|e| Error::parse(file, &place, format!("cannot load buffer: {e}")))?;
         if data.len() < buffer.length() {
@@ -249,15 +273,91 @@ fn load_buffers(
     Ok(out)
 }
 
+/// Guards `gltf`'s reading of an external buffer (which reads whatever the path names to its
+/// end): the file, resolved as `gltf` resolves it, must be a regular file that fits in memory.
+/// Data URIs, and any URI when `base` is `None` (`gltf` then refuses external files), pass.
+fn check_external(uri: &str, base: Option<&Path>, file: &str, place: &str) -> Result<()> {
+    let Some(base) = base else { return Ok(()) };
+    let path = if uri.contains(':') {
+        match uri
+            .strip_prefix("file://")
+            .or_else(|| uri.strip_prefix("file:"))
+        {
+            Some(p) => std::path::PathBuf::from(p),
+            // data: URIs are decoded from the file itself; other schemes are refused by gltf.
+            None => return Ok(()),
+        }
+    } else {
+        match percent_decode(uri) {
+            Some(rel) => base.join(rel),
+            None => return Ok(()), // reported by `precheck`
+        }
+    };
+    let meta = std::fs::metadata(&path).map_err(|e| {
+        Error::parse(
+            file,
+            place,
+            format!("cannot load buffer {}: {e}", path.display()),
+        )
+    })?;
+    if !meta.is_file() {
+        return Err(Error::parse(
+            file,
+            place,
+            format!("buffer {} is not a regular file", path.display()),
+        ));
+    }
+    limits::check_memory(
+        file,
+        place,
+        &format!("the bytes of buffer {}", path.display()),
+        meta.len(),
+    )
+}
+
 struct Builder<'a> {
     file: &'a str,
     buffers: &'a [gltf::buffer::Data],
     /// Decoded meshes by glTF mesh index, so instances decode once.
     cache: HashMap<usize, (Vec<Vec3>, Vec<[u32; 3]>)>,
-    out: Vec<Mesh>,
+    /// Instances to build: mesh name, glTF mesh index, world transform.
+    pending: Vec<(String, usize, Mat4)>,
+    /// Available memory, read once ([`limits::mem_available`]).
+    mem: Option<u64>,
+    /// Vertices and triangles decoded or instanced so far (the budget in the module doc).
+    vertices: u64,
+    triangles: u64,
 }
 
-impl Builder<'_> {
+impl<'a> Builder<'a> {
+    /// Counts `vertices` and `triangles` more against the budget (see the module doc), before
+    /// they are allocated.
+    fn spend(&mut self, place: &str, vertices: u64, triangles: u64) -> Result<()> {
+        self.vertices += vertices;
+        self.triangles += triangles;
+        if self.triangles >= u32::MAX as u64 {
+            return Err(Error::parse(
+                self.file,
+                place,
+                format!(
+                    "the scene reaches {} triangles; at most {} are supported",
+                    self.triangles,
+                    u32::MAX - 1
+                ),
+            ));
+        }
+        limits::check_memory_with(
+            self.mem,
+            self.file,
+            place,
+            &format!(
+                "the {} vertices and {} triangles decoded so far",
+                self.vertices, self.triangles
+            ),
+            self.vertices * 12 + self.triangles * 48,
+        )
+    }
+
     /// Depth-first, children in order, with an explicit stack: a hostile file with a very deep
     /// hierarchy must not overflow the call stack. glTF nodes form disjoint trees, so a node
     /// reached twice in one scene (two parents, a cycle, or listed twice) is an error; that
@@ -285,7 +385,8 @@ impl Builder<'_> {
         Ok(())
     }
 
-    /// Adds the node's mesh, if any, as one [`Mesh`] with the node's world transform.
+    /// Records the node's mesh, if any, as one instance with the node's world transform (made a
+    /// [`Mesh`] by [`Self::finish`]), decoding the mesh the first time.
     fn instance(&mut self, node: &gltf::Node, world: Mat4) -> Result<()> {
         let Some(mesh) = node.mesh() else {
             return Ok(());
@@ -294,8 +395,14 @@ impl Builder<'_> {
             let decoded = self.decode_mesh(&mesh)?;
             self.cache.insert(mesh.index(), decoded);
         }
-        let (positions, indices) = &self.cache[&mesh.index()];
-        if !indices.is_empty() {
+        let (nv, nt) = {
+            let (p, i) = &self.cache[&mesh.index()];
+            (p.len() as u64, i.len() as u64)
+        };
+        if nt > 0 {
+            self.spend(&format!("nodes[{}]", node.index()), nv, nt)?;
+        }
+        if nt > 0 {
             let node_name = node
                 .name()
                 .map(str::to_string)
@@ -304,18 +411,36 @@ impl Builder<'_> {
                 .name()
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("mesh {}", mesh.index()));
-            let mut m = Mesh::new(
-                format!("{node_name}/{mesh_name}"),
-                positions.clone(),
-                indices.clone(),
-            );
-            m.transform = Affine3A::from_mat4(world);
-            self.out.push(m);
+            self.pending
+                .push((format!("{node_name}/{mesh_name}"), mesh.index(), world));
         }
         Ok(())
     }
 
-    fn decode_mesh(&self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    /// The instances as meshes, in traversal order. Called after every instance has been
+    /// counted against the budget, so nothing is copied for a scene that is refused.
+    fn finish(mut self) -> Vec<Mesh> {
+        let mut out = Vec::with_capacity(self.pending.len());
+        for (name, mesh, world) in std::mem::take(&mut self.pending) {
+            let (positions, indices) = &self.cache[&mesh];
+            let mut m = Mesh::new(name, positions.clone(), indices.clone());
+            m.transform = Affine3A::from_mat4(world);
+            out.push(m);
+        }
+        out
+    }
+
+    /// Decodes a mesh's triangle primitives. Its triangles are counted against the budget as
+    /// they are decoded and given back afterwards: the instances (in [`Self::instance`]) are
+    /// what the scene keeps.
+    fn decode_mesh(&mut self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+        let (v0, t0) = (self.vertices, self.triangles);
+        let r = self.decode_mesh_counted(mesh);
+        (self.vertices, self.triangles) = (v0, t0);
+        r
+    }
+
+    fn decode_mesh_counted(&mut self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
         let mut positions = Vec::new();
         let mut tris = Vec::new();
         for prim in mesh.primitives() {
@@ -349,6 +474,11 @@ impl Builder<'_> {
             };
             let n = idx.len();
             let b = base as u32;
+            let new_tris = match mode {
+                Mode::Triangles => n / 3,
+                _ => n.saturating_sub(2),
+            };
+            self.spend(&place(""), nv, new_tris as u64)?;
             match mode {
                 Mode::Triangles => {
                     if !n.is_multiple_of(3) {
@@ -458,8 +588,9 @@ impl Builder<'_> {
         Ok(out)
     }
 
-    /// The bytes of every element of `acc` (`elem` bytes each), sparse substitution applied.
-    fn gather(&self, acc: &gltf::Accessor, elem: usize) -> Result<Vec<Elem<'_>>> {
+    /// The bytes of every element of `acc` (`elem` bytes each), sparse substitution applied,
+    /// as a lazy view (nothing is allocated per element).
+    fn gather(&self, acc: &gltf::Accessor, elem: usize) -> Result<Gathered<'a>> {
         let count = acc.count();
         let place = format!("accessors[{}]", acc.index());
         if count == 0 {
@@ -470,36 +601,33 @@ impl Builder<'_> {
                 "count is 0 (glTF requires at least 1)",
             ));
         }
-        let mut elems: Vec<Elem> = match acc.view() {
-            Some(view) => {
-                let s = self.strided(&view, acc.offset(), count, elem, &place)?;
-                (0..count).map(|i| s.get(i)).collect()
-            }
+        let base = match acc.view() {
+            Some(view) => Some(self.strided(&view, acc.offset(), count, elem, &place)?),
             // Sparse accessor without a view: base values are zeros.
             None => {
                 // Nothing in the file backs `count` here, so bound it by the file's data: a
-                // hostile count must be an error, not a multi-gigabyte allocation.
+                // hostile count must be an error, not a large allocation downstream.
                 let data: usize = self.buffers.iter().map(|b| b.len()).sum();
-                let limit = data.saturating_mul(16).saturating_add(1 << 24);
+                let limit = data.saturating_mul(16).saturating_add(64 << 10);
                 if count.saturating_mul(elem) > limit {
                     return Err(Error::parse(
                         self.file,
                         place,
                         format!(
-                            "sparse accessor without bufferView has count {count}, implausibly large for {data} bytes of buffers"
+                            "sparse accessor without bufferView has count {count} ({} bytes of implicit zeros), implausibly large for {data} bytes of buffers (at most 16 bytes per buffer byte + 64 KiB)",
+                            count.saturating_mul(elem)
                         ),
                     ));
                 }
-                const ZEROS: [u8; 16] = [0; 16];
-                vec![
-                    Elem {
-                        bytes: &ZEROS[..elem],
-                        buffer: 0,
-                        offset: 0,
-                    };
-                    count
-                ]
+                None
             }
+        };
+        const ZEROS: [u8; 16] = [0; 16];
+        let mut g = Gathered {
+            base,
+            count,
+            zeros: &ZEROS[..elem],
+            sparse: Vec::new(),
         };
         if let Some(sparse) = acc.sparse() {
             let sc = sparse.count();
@@ -514,6 +642,8 @@ impl Builder<'_> {
             let is = self.strided_packed(&iv, ind.offset(), sc, isize_, &place)?;
             let vals = sparse.values();
             let vs = self.strided_packed(&vals.view(), vals.offset(), sc, elem, &place)?;
+            // `sc` elements fit in the views (checked above), so this is bounded by the file.
+            g.sparse.reserve_exact(sc);
             for k in 0..sc {
                 let target = read_uint(is.get(k).bytes) as usize;
                 if target >= count {
@@ -527,10 +657,12 @@ impl Builder<'_> {
                         format!("sparse index {target} out of range (count {count})"),
                     ));
                 }
-                elems[target] = vs.get(k);
+                g.sparse.push((target, vs.get(k)));
             }
+            // Stable: of repeated targets (invalid glTF, tolerated), the last one wins.
+            g.sparse.sort_by_key(|&(t, _)| t);
         }
-        Ok(elems)
+        Ok(g)
     }
 
     fn strided_packed(
@@ -540,7 +672,7 @@ impl Builder<'_> {
         count: usize,
         elem: usize,
         place: &str,
-    ) -> Result<Strided<'_>> {
+    ) -> Result<Strided<'a>> {
         self.strided_with(view, offset, count, elem, place, Some(elem))
     }
 
@@ -551,7 +683,7 @@ impl Builder<'_> {
         count: usize,
         elem: usize,
         place: &str,
-    ) -> Result<Strided<'_>> {
+    ) -> Result<Strided<'a>> {
         self.strided_with(view, offset, count, elem, place, None)
     }
 
@@ -563,9 +695,10 @@ impl Builder<'_> {
         elem: usize,
         place: &str,
         stride: Option<usize>,
-    ) -> Result<Strided<'_>> {
+    ) -> Result<Strided<'a>> {
         let b = view.buffer().index();
-        let data = &self.buffers[b];
+        let buffers: &'a [gltf::buffer::Data] = self.buffers;
+        let data = &buffers[b];
         let v_start = view.offset();
         let v_len = view.length();
         if v_start.checked_add(v_len).is_none_or(|e| e > data.len()) {
@@ -598,6 +731,40 @@ impl Builder<'_> {
         };
         s.check(count, self.file, place)?;
         Ok(s)
+    }
+}
+
+/// An accessor's elements: its view (or zeros) with sparse substitutions, read lazily.
+struct Gathered<'a> {
+    base: Option<Strided<'a>>,
+    count: usize,
+    zeros: &'static [u8],
+    /// Sparse substitutions `(target, value)`, sorted by target.
+    sparse: Vec<(usize, Elem<'a>)>,
+}
+
+impl<'a> Gathered<'a> {
+    fn len(&self) -> usize {
+        self.count
+    }
+
+    fn iter(&self) -> impl Iterator<Item = Elem<'a>> + '_ {
+        let mut p = 0;
+        (0..self.count).map(move |i| {
+            let mut v = None;
+            while p < self.sparse.len() && self.sparse[p].0 == i {
+                v = Some(self.sparse[p].1);
+                p += 1;
+            }
+            v.unwrap_or_else(|| match &self.base {
+                Some(s) => s.get(i),
+                None => Elem {
+                    bytes: self.zeros,
+                    buffer: 0,
+                    offset: 0,
+                },
+            })
+        })
     }
 }
 

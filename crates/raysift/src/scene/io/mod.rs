@@ -3,9 +3,12 @@
 //!
 //! Every loader reports errors as `file: place: what` (line, element or byte offset) and never
 //! panics on malformed input; index range and finiteness are checked once more by
-//! [`Scene::from_meshes`].
+//! [`Scene::from_meshes`]. Counts a file cannot back, gzip bombs and files larger than memory
+//! fail before allocating ([`limits`]). Every loader is fuzzed (`fuzz/`, `docs/fuzzing.md`)
+//! through [`load_bytes`].
 
 pub mod gltf;
+pub mod limits;
 pub mod obj;
 pub mod off;
 pub mod ply;
@@ -57,24 +60,102 @@ pub fn detect_format(path: &Path) -> Result<(Format, bool)> {
     Ok((f, gz))
 }
 
-/// Reads a whole file, decompressing gzip when `gz`.
+/// Reads a whole file, decompressing gzip when `gz` (see [`gunzip`]). A file that is not a
+/// regular file (a device, a FIFO), or larger than the available memory, is refused before
+/// reading ([`limits`]).
 pub fn read_bytes(path: &Path, gz: bool) -> Result<Vec<u8>> {
     let file = path.display().to_string();
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(&file, e))?;
+    if !meta.is_file() {
+        return Err(Error::parse(&file, "file", "not a regular file"));
+    }
+    limits::check_memory(&file, "file", "its bytes", meta.len())?;
     let raw = std::fs::read(path).map_err(|e| Error::io(&file, e))?;
     if !gz {
         return Ok(raw);
     }
-    let mut out = Vec::with_capacity(raw.len() * 4);
-    flate2::read::MultiGzDecoder::new(&raw[..])
+    gunzip(&raw, &file)
+}
+
+/// Decompresses a gzip stream (several members are concatenated, as `gunzip` does); `file`
+/// names the input in errors. Inflates as a stream and stops once the output passes
+/// [`limits::gzip_cap`] of the input's size ([`limits::GZ_MAX_RATIO`] times it plus
+/// [`limits::GZ_SLACK`]), or the available memory, whichever is smaller: a decompression bomb
+/// is an error after at most that much work and memory.
+pub fn gunzip(raw: &[u8], file: &str) -> Result<Vec<u8>> {
+    let cap = limits::gzip_cap(raw.len() as u64);
+    let mem = limits::mem_available();
+    let limit = mem.map_or(cap, |m| m.min(cap));
+    let mut out = Vec::with_capacity(raw.len().saturating_mul(4).min(limit as usize));
+    flate2::read::MultiGzDecoder::new(raw)
+        .take(limit.saturating_add(1))
         .read_to_end(&mut out)
         .map_err(|e| {
             Error::parse(
-                &file,
+                file,
                 format!("gzip stream, decompressed byte {}", out.len()),
                 e.to_string(),
             )
         })?;
+    if out.len() as u64 > limit {
+        let place = format!("gzip stream, decompressed byte {limit}");
+        return Err(if limit == cap {
+            Error::parse(
+                file,
+                place,
+                format!(
+                    "inflates to more than {cap} bytes ({} x its {} compressed bytes + {}); refused as a likely decompression bomb (gunzip it first to load it anyway)",
+                    limits::GZ_MAX_RATIO,
+                    raw.len(),
+                    limits::GZ_SLACK
+                ),
+            )
+        } else {
+            Error::parse(
+                file,
+                place,
+                format!(
+                    "inflates to more than the {} of memory available (MemAvailable); refused rather than run out of memory",
+                    limits::human(limit)
+                ),
+            )
+        });
+    }
     Ok(out)
+}
+
+/// Parses the bytes of a scene file of `format` (already decompressed) into meshes; `file` names
+/// it in errors, `base` is the folder that glTF external buffers are resolved from (`None`:
+/// external buffers are an error, only embedded and GLB buffers load).
+pub fn parse_meshes(
+    format: Format,
+    bytes: &[u8],
+    file: &str,
+    base: Option<&Path>,
+) -> Result<Vec<super::Mesh>> {
+    match format {
+        Format::Obj => obj::parse(bytes, file),
+        Format::Ply => ply::parse(bytes, file),
+        Format::Gltf | Format::Glb => gltf::parse(bytes, file, base),
+        Format::Off => off::parse(bytes, file),
+    }
+}
+
+/// Loads a scene from the bytes of a file named `name`, without touching the file system
+/// (unless `base` is given, for glTF external buffers): the format and gzip come from the name's
+/// extension, as in [`load`], and the result is the same as loading a file with that content.
+/// This is the entry point the fuzz targets use (`fuzz/`).
+pub fn load_bytes(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Scene> {
+    let (format, gz) = detect_format(Path::new(name))?;
+    let inflated;
+    let bytes = if gz {
+        inflated = gunzip(bytes, name)?;
+        &inflated[..]
+    } else {
+        bytes
+    };
+    let meshes = parse_meshes(format, bytes, name, base)?;
+    Scene::from_meshes(name, meshes)
 }
 
 /// Loads a scene file.
@@ -83,11 +164,6 @@ pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
     let (format, gz) = detect_format(path)?;
     let bytes = read_bytes(path, gz)?;
     let name = path.display().to_string();
-    let meshes = match format {
-        Format::Obj => obj::parse(&bytes, &name)?,
-        Format::Ply => ply::parse(&bytes, &name)?,
-        Format::Gltf | Format::Glb => gltf::parse(&bytes, &name, path.parent())?,
-        Format::Off => off::parse(&bytes, &name)?,
-    };
+    let meshes = parse_meshes(format, &bytes, &name, path.parent())?;
     Scene::from_meshes(name, meshes)
 }

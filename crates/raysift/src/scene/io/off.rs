@@ -8,6 +8,9 @@
 //! `4OFF`, `nOFF` and `OFF BINARY` are rejected with a clear message. One mesh named after the
 //! file.
 //!
+//! Limits: counts that the file's size cannot hold (at 6 bytes per vertex line and 2 per face
+//! line at least) fail at the counts line, before anything is read or reserved.
+//!
 //! No crate: OFF is a few lines of text, and a hand-written reader gives the line numbers the
 //! project's error convention asks for.
 
@@ -92,6 +95,18 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
     let nf = count(counts[1], "face")?;
     if let Some(ne) = counts.get(2) {
         count(ne, "edge")?;
+    }
+    // Before reading or reserving anything: a vertex line takes at least 6 bytes ("0 0 0" and a
+    // newline), a face line 2 ("0" and a newline; the last line may lack its newline).
+    let need = nv as u128 * 6 + nf as u128 * 2;
+    if need > text.len() as u128 + 1 {
+        return Err(at(
+            cl,
+            format!(
+                "the header declares {nv} vertices and {nf} faces, more than the {} bytes of the file can hold (at least 6 bytes per vertex, 2 per face)",
+                text.len()
+            ),
+        ));
     }
     if nv > u32::MAX as usize {
         return Err(at(

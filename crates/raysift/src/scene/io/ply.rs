@@ -14,7 +14,13 @@
 //!
 //! Strictness: element counts must match the data exactly (a missing element, a short line, an
 //! extra value on a line or data after the last element is an error), coordinates must be
-//! finite and indices in range. Faces with fewer than 3 vertices produce no triangle.
+//! finite and indices in range. Faces with fewer than 3 vertices produce no triangle. An
+//! element without properties holds no data (no bytes, no line), whatever its count.
+//!
+//! Limits: before any data is read, each element's count times its smallest possible size (in
+//! binary the sum of its scalar sizes and list count sizes; in ascii two characters per
+//! property, a digit and a separator) must fit in the bytes after the header, so a header
+//! claiming 10^12 vertices in a 200-byte file fails at once, naming the element.
 
 use crate::error::{Error, Result};
 use crate::scene::Mesh;
@@ -108,6 +114,7 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
     }
     let header = parse_header(bytes, file)?;
     let kinds = classify(&header.elements, file)?;
+    check_counts(&header, bytes.len() - header.body, file)?;
     let vertex_count = header
         .elements
         .iter()
@@ -271,6 +278,38 @@ fn short(s: &str) -> String {
     s.chars().take(40).collect()
 }
 
+/// Fails when the elements the header declares cannot fit in the `body` bytes after it, even at
+/// their smallest (see the module doc), before anything is read or reserved.
+fn check_counts(header: &Header, body: usize, file: &str) -> Result<()> {
+    let mut need: u128 = 0;
+    for (e_idx, el) in header.elements.iter().enumerate() {
+        let min_each: usize = match header.encoding {
+            Encoding::Ascii => 2 * el.props.len(),
+            Encoding::Le | Encoding::Be => el
+                .props
+                .iter()
+                .map(|(_, p)| match *p {
+                    Prop::Scalar(t) | Prop::List(t, _) => t.size(),
+                })
+                .sum(),
+        };
+        need += el.count as u128 * min_each as u128;
+        // An ascii file may omit the last line's newline.
+        let have = body as u128 + (header.encoding == Encoding::Ascii) as u128;
+        if need > have {
+            return Err(Error::parse(
+                file,
+                format!("header, element {e_idx} ({})", el.name),
+                format!(
+                    "the header declares {} {} elements of at least {min_each} bytes each, more than the {body} bytes of data after the header can hold",
+                    el.count, el.name
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn classify(elements: &[Element], file: &str) -> Result<Vec<Kind>> {
     let mut have_vertex = false;
     let mut have_face = false;
@@ -406,6 +445,10 @@ fn read_ascii(
             Kind::Vertex { .. } => reserve(&mut out.positions, el.count, text.len(), 6),
             Kind::Face { .. } => reserve(&mut out.indices, el.count, text.len(), 8),
             Kind::Other => {}
+        }
+        if el.props.is_empty() {
+            // No properties, no data (and no line), whatever the count.
+            continue;
         }
         for i in 0..el.count {
             // Next non-blank line: blank lines are tolerated between elements.
@@ -671,6 +714,10 @@ fn read_binary<const BE: bool>(
             Kind::Vertex { .. } => reserve(&mut out.positions, el.count, remaining, 3),
             Kind::Face { .. } => reserve(&mut out.indices, el.count, remaining, 4),
             Kind::Other => {}
+        }
+        if el.props.is_empty() {
+            // No properties, no bytes: skipping is exact (looping `count` times could hang).
+            continue;
         }
         for i in 0..el.count {
             let start = cur.pos;

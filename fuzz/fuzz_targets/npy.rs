@@ -1,0 +1,6 @@
+#![no_main]
+//! Fuzz target `npy`: see fuzz/src/lib.rs and docs/fuzzing.md.
+use libfuzzer_sys::fuzz_target;
+use raysift_fuzz::{run, Target};
+
+fuzz_target!(|data: &[u8]| run(Target::Npy, data));
