@@ -102,6 +102,33 @@ proptest! {
     }
 }
 
+// ---------------------------------------------------------------- adversarial classes (issue #20)
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, .. ProptestConfig::default() })]
+
+    /// Each adversarial class (raysift::testkit::adversarial: coplanar grids axis-aligned and
+    /// tilted, rays at shared edges and vertices, near-parallel rays, needle fans, duplicated
+    /// triangles, huge and tiny scales and far offsets, denormal and huge directions, grazing
+    /// pinhole cameras), generated from a proptest seed, for every tracer and preset.
+    #[test]
+    fn adversarial_classes_equal_naive(class in 0usize..raysift::testkit::adversarial::CLASSES.len(), seed in 0u64..1_000_000) {
+        let name = raysift::testkit::adversarial::CLASSES[class];
+        let c = raysift::testkit::adversarial::case(name, seed, 400).unwrap();
+        prop_assert_eq!(check_all(&c.scene, &c.rays), Ok(()), "{}", c.name);
+    }
+}
+
+#[test]
+fn every_adversarial_class_at_a_fixed_seed() {
+    for name in raysift::testkit::adversarial::CLASSES {
+        let c = raysift::testkit::adversarial::case(name, 7, 600).unwrap();
+        if let Err(e) = check_all(&c.scene, &c.rays) {
+            panic!("{}: {e}", c.name);
+        }
+    }
+}
+
 // ---------------------------------------------------------------- fixed cases
 
 #[test]

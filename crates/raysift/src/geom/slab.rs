@@ -54,6 +54,13 @@ impl SlabRay {
     /// chosen by the precomputed signs instead of a min/max per axis.
     #[inline(always)]
     pub fn entry(&self, min: Vec3, max: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
+        self.interval(min, max, tmin, tmax).map(|(enter, _)| enter)
+    }
+
+    /// [`SlabRay::entry`] with the exit too: the interval `[entry, exit]` (entry lowered, exit
+    /// widened), or `None` when it is empty.
+    #[inline(always)]
+    pub fn interval(&self, min: Vec3, max: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32)> {
         let pick = |neg: bool, lo: f32, hi: f32| if neg { (hi, lo) } else { (lo, hi) };
         let (nx, fx) = pick(self.neg[0], min.x, max.x);
         let (ny, fy) = pick(self.neg[1], min.y, max.y);
@@ -74,7 +81,7 @@ impl SlabRay {
         }
         let enter = enter - enter.abs() * BOX_ENTRY_SLACK;
         if enter <= exit {
-            Some(enter)
+            Some((enter, exit))
         } else {
             None
         }

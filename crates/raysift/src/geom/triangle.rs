@@ -6,12 +6,14 @@
 //!   `u >= 0, v >= 0, u + v <= 1` (edges and vertices inclusive); no epsilon on the determinant:
 //!   only `det == 0` (ray parallel to the plane, or a triangle with zero edges) and non-finite
 //!   values are rejected, so the answer does not depend on the scene's scale;
-//! - **the box gate** ([`in_box_at`]): a candidate is a hit only when the ray at its computed
-//!   `t` lies in the triangle's bounding box, as the shared slab test
-//!   ([`SlabRay::entry`](super::SlabRay::entry), on the interval `[t, t]`) computes it. The
-//!   Möller–Trumbore `t` of a ray nearly parallel to the plane is ill-conditioned: its computed
-//!   point can lie far off the triangle (a "phantom" hit 30 units away was seen), and rounding
-//!   accepts rays passing just outside an edge or vertex; neither is then inside the box;
+//! - **the box gate** ([`box_gate`]): a candidate is a hit only when the ray meets the
+//!   triangle's bounding box, as the shared slab test
+//!   ([`SlabRay::interval`](super::SlabRay::interval)) computes it, and its computed `t` lies in
+//!   that slab interval or within [`GATE_TOLERANCE`] of it, in which case `t` is moved to the
+//!   interval's nearer end. The Möller–Trumbore `t` of a ray nearly parallel to the plane is
+//!   ill-conditioned: its computed point can lie far off the triangle (a "phantom" hit 30 units
+//!   away was seen): refused. A ray far from `v0` hitting a triangle in an axis plane (whose box
+//!   is flat) gets a `t` a few ulps off the plane: moved onto it;
 //! - degenerate triangles (zero or near-zero area) are collapsed to a point by the scene
 //!   ([`is_degenerate`]), which makes both edges exactly zero and so `det == 0`: they keep their id but
 //!   are never hit;
@@ -23,7 +25,7 @@
 //! `(near - o)·(1/d)` of `N` is at most `T`'s and each exit at least `T`'s (f32 subtraction and
 //! multiplication are monotone), and the max, min, widening and lowering that follow are
 //! monotone too; so the slab interval of `N` contains that of `T`. A hit at `t` has `t` in
-//! `T`'s interval (the gate), hence in the interval of every box that contains `T`: a BVH node
+//! `T`'s interval (the gate puts it there), hence in the interval of every box that contains `T`: a BVH node
 //! holding the triangle is entered whenever the ray's clip interval contains `t`, with an entry
 //! distance `<= t`, so neither the visit nor the ordered-traversal cut (`entry <= best t`, ties
 //! included) can lose it. Space-dividing tracers (DACRT) keep the pair in one child of every
@@ -82,27 +84,50 @@ pub fn intersect_triangle(
     if !(v >= 0.0 && u + v <= 1.0) {
         return None;
     }
-    let t = e2.dot(q) * inv_det;
+    let t = box_gate(origin, dir, v0, v1, v2, e2.dot(q) * inv_det)?;
     if !(t >= tmin && t <= tmax) {
-        return None;
-    }
-    if !in_box_at(origin, dir, v0, v1, v2, t) {
         return None;
     }
     Some(TriHit { t, u, v })
 }
 
-/// The box gate: true when the ray at `t` is inside the triangle's bounding box as the shared
-/// slab test computes it ([`SlabRay::entry`](super::SlabRay::entry) on the box with the interval
-/// `[t, t]`). A hit counts only where this holds, so every box cull that uses the same slab
-/// arithmetic on a box containing the triangle's box keeps every hit: the slab test is monotone in
-/// the box (see the module doc). Evaluated only for candidates that passed the rest of the test.
+/// How far (in coordinate units, relative to the largest coordinate of the ray's origin and the
+/// triangle's corners) the Möller–Trumbore point may lie off the triangle's box and still be
+/// moved into it by [`box_gate`]: `2^-14`, about 1000 times the test's own rounding on a
+/// well-conditioned ray, far below the phantom hits it refuses (BENCHMARKS.md, "The exact
+/// contract").
+pub const GATE_TOLERANCE: f32 = 1.0 / 16384.0;
+
+/// The box gate: the candidate distance `t` moved into the triangle's slab interval (the shared
+/// slab test [`SlabRay::interval`](super::SlabRay::interval) on the triangle's bounding box,
+/// unclipped), or `None` when the ray misses the box or `t` lies farther off it than
+/// [`GATE_TOLERANCE`] allows. A hit's distance is therefore always inside the interval every box
+/// cull computes for a box containing the triangle's (the slab test is monotone in the box, see
+/// the module doc), so no cull can lose it. Moving `t` matters for triangles in an axis plane
+/// (walls, floors): their box is flat, its slab interval is the plane crossing to within a few
+/// ulps, and the Möller–Trumbore `t` of a ray far from `v0` is off by more than that; the moved
+/// `t` is the better one (one subtraction and one multiplication from the plane). The result
+/// does not depend on the ray's `[tmin, tmax]`, so every traversal order sees the same hit.
+/// Evaluated only for candidates that passed the barycentric tests.
 #[inline(always)]
-pub fn in_box_at(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, t: f32) -> bool {
+pub fn box_gate(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, t: f32) -> Option<f32> {
     let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
-    super::SlabRay::new(origin, dir)
-        .entry(lo, hi, t, t)
-        .is_some()
+    let (enter, exit) =
+        super::SlabRay::new(origin, dir).interval(lo, hi, f32::NEG_INFINITY, f32::INFINITY)?;
+    let moved = if t < enter {
+        enter
+    } else if t > exit {
+        exit
+    } else {
+        t
+    };
+    let scale = origin.abs().max(lo.abs()).max(hi.abs()).max_element();
+    // A NaN `t` (or scale) fails this comparison.
+    if (t - moved).abs() * dir.abs().max_element() <= GATE_TOLERANCE * scale {
+        Some(moved)
+    } else {
+        None
+    }
 }
 
 /// True when the triangle has (nearly) zero area: `|e1 × e2|² <= 1e-14 · |e1|²·|e2|²`, i.e. the
@@ -172,8 +197,11 @@ mod tests {
             if let Some(h) = intersect_triangle(o, d, a, b, c, 0.0, f32::INFINITY) {
                 hits += 1;
                 let pt = o + d * h.t;
+                // The slab's slack at distance 30 is 30 · 3.6e-7 = 1.1e-5, plus the rounding of
+                // `o + d·t` (ulp(30) = 1.9e-6).
+                let slack = Vec3::splat(2e-5);
                 assert!(
-                    pt.cmpge(lo).all() && pt.cmple(hi).all(),
+                    pt.cmpge(lo - slack).all() && pt.cmple(hi + slack).all(),
                     "{o:?} {d:?} {h:?}: {pt:?}"
                 );
                 assert!(mt);
@@ -184,6 +212,70 @@ mod tests {
             "the case must exercise phantoms: {phantoms}"
         );
         assert!(hits > 100_000, "well-conditioned hits are kept: {hits}");
+    }
+
+    /// A triangle in the plane x = 16.218 (a Sponza wall) and rays from a box around it aimed at it:
+    /// every ray that hits it well inside (f64 barycentrics at least 1e-3 from an edge, not
+    /// grazing) is hit, at the f64 distance to 1e-5 relative. Without moving `t` onto the flat box,
+    /// the gate refused some of them (counted: the case must contain them).
+    #[test]
+    fn axis_plane_triangles_are_hit_where_f64_hits_them() {
+        let (a, b, c) = (
+            Vec3::new(16.218_04, 0.093313, 7.171_489),
+            Vec3::new(16.218_04, 3.892_572, 3.638_583),
+            Vec3::new(16.218_04, 3.678_313, 3.495_419),
+        );
+        let f = |v: Vec3| glam::DVec3::new(v.x as f64, v.y as f64, v.z as f64);
+        let (lo, hi) = (Vec3::new(-17.4, -0.9, -7.8), Vec3::new(17.4, 15.6, 7.8));
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+        let (mut inside, mut unmoved_refused) = (0, 0);
+        for _ in 0..100_000 {
+            let o = lo + (hi - lo) * Vec3::new(rng.gen(), rng.gen(), rng.gen());
+            // Aimed at a random point of the triangle (and beyond or short of it by up to 2x).
+            let (r1, r2): (f32, f32) = (rng.gen(), rng.gen());
+            let (r1, r2) = if r1 + r2 > 1.0 {
+                (1.0 - r1, 1.0 - r2)
+            } else {
+                (r1, r2)
+            };
+            let target = a + (b - a) * r1 + (c - a) * r2;
+            let d = (target - o) * rng.gen_range(0.5..2.0);
+            // f64 Möller–Trumbore.
+            let (o64, d64, a64) = (f(o), f(d), f(a));
+            let (e1, e2) = (f(b) - a64, f(c) - a64);
+            let p = d64.cross(e2);
+            let det = e1.dot(p);
+            let s = o64 - a64;
+            let (u, q) = (s.dot(p) / det, s.cross(e1));
+            let (v, t) = (d64.dot(q) / det, e2.dot(q) / det);
+            let cos = d64.normalize().dot(e1.cross(e2).normalize()).abs();
+            if !(u > 1e-3 && v > 1e-3 && u + v < 1.0 - 1e-3 && t > 1e-3 && cos > 1e-2) {
+                continue;
+            }
+            inside += 1;
+            let h = intersect_triangle(o, d, a, b, c, 0.0, f32::INFINITY)
+                .unwrap_or_else(|| panic!("{o:?} {d:?} misses, f64 t = {t}"));
+            assert!(
+                ((h.t as f64) - t).abs() <= 1e-5 * t,
+                "{o:?} {d:?}: {} vs {t}",
+                h.t
+            );
+            let slab = crate::geom::SlabRay::new(o, d);
+            let (lo_t, hi_t) = (a.min(b).min(c), a.max(b).max(c));
+            let t_mt = {
+                let (e1, e2) = (b - a, c - a);
+                let det = e1.dot(d.cross(e2));
+                e2.dot((o - a).cross(e1)) * (1.0 / det)
+            };
+            if slab.entry(lo_t, hi_t, t_mt, t_mt).is_none() {
+                unmoved_refused += 1;
+            }
+        }
+        assert!(inside > 10_000, "the case must hit the wall: {inside}");
+        assert!(
+            unmoved_refused > 10,
+            "the case must contain rays the unmoved gate refused: {unmoved_refused}"
+        );
     }
 
     const V0: Vec3 = Vec3::new(0.0, 0.0, 0.0);

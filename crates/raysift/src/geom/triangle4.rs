@@ -8,13 +8,13 @@
 //! the scalar test become one lane mask from vector comparisons; the arithmetic of rejected lanes
 //! (divisions by zero, NaNs) is computed and ignored. Written on glam's `Vec4` (SSE2 on x86-64,
 //! scalar elsewhere), without `unsafe`: the earlier `[f32; 4]` form vectorised the arithmetic but
-//! compiled the seven accept tests to 28 scalar compares. The scalar test's last step, the box
-//! gate ([`in_box_at`]), runs per accepted lane on the lane's own corners' box (stored when the
-//! lane is set), so it too is the scalar computation: candidates are rare, the gate cheap.
+//! compiled the seven accept tests to 28 scalar compares. The scalar test's last steps, the box
+//! gate ([`box_gate`]) and the range test, run per accepted lane on the lane's own corners'
+//! box (stored when the lane is set), so they too are the scalar computation.
 //!
 //! [`intersect_triangle`]: super::intersect_triangle
 
-use super::triangle::in_box_at;
+use super::triangle::box_gate;
 use glam::{Vec3, Vec4};
 
 /// Four triangles, per axis and lane (`v0[axis]` holds the four lanes' first corners' `axis`
@@ -95,36 +95,41 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let q = cross(s, e1);
     let v = dot(d, q) * inv_det;
     let t = dot(e2, q) * inv_det;
-    let mut h = accept(det, u, v, t, tmin, Vec4::splat(tmax));
+    let mut h = accept(det, u, v, t);
     let mut m = h.mask;
     while m != 0 {
         let l = m.trailing_zeros() as usize;
         m &= m - 1;
         let [a, b, c] = tri.corners[l];
-        if !in_box_at(origin, dir, a, b, c, h.t[l]) {
-            h.mask &= !(1 << l);
-        }
+        let gated = box_gate(origin, dir, a, b, c, h.t[l]);
+        gate_lane(&mut h, l, gated, tmin, tmax);
     }
     h
 }
 
-/// The scalar test's accept conditions, in its order, lane-wise; a NaN fails every comparison
-/// but `!=` (as in the scalar test, whose NaN `det` then fails `u >= 0`).
+/// The scalar test's barycentric accept conditions, in its order, lane-wise; a NaN fails every
+/// comparison but `!=` (as in the scalar test, whose NaN `det` then fails `u >= 0`). The box
+/// gate and the range test follow per accepted lane ([`gate_lane`]).
 #[inline(always)]
-fn accept(det: L, u: L, v: L, t: L, tmin: f32, tmax: L) -> Hit4 {
+fn accept(det: L, u: L, v: L, t: L) -> Hit4 {
     let (zero, one) = (Vec4::ZERO, Vec4::ONE);
-    let ok = det.cmpne(zero)
-        & u.cmpge(zero)
-        & u.cmple(one)
-        & v.cmpge(zero)
-        & (u + v).cmple(one)
-        & t.cmpge(Vec4::splat(tmin))
-        & t.cmple(tmax);
+    let ok = det.cmpne(zero) & u.cmpge(zero) & u.cmple(one) & v.cmpge(zero) & (u + v).cmple(one);
     Hit4 {
         mask: ok.bitmask(),
         t: t.to_array(),
         u: u.to_array(),
         v: v.to_array(),
+    }
+}
+
+/// Lane `l` after the scalar test's last steps: the box gate's distance `gated` (`None`: refused)
+/// and the range test `tmin <= t <= tmax`.
+#[inline(always)]
+#[allow(clippy::manual_range_contains)]
+fn gate_lane(h: &mut Hit4, l: usize, gated: Option<f32>, tmin: f32, tmax: f32) {
+    match gated {
+        Some(t) if t >= tmin && t <= tmax => h.t[l] = t,
+        _ => h.mask &= !(1 << l),
     }
 }
 
@@ -172,16 +177,15 @@ impl TriFromOrigin {
         let u = dot(self.s, p) * inv_det;
         let v = dot(d, self.q) * inv_det;
         let t = self.tq * inv_det;
-        let mut h = accept(det, u, v, t, tmin, tmax);
+        let mut h = accept(det, u, v, t);
         let mut m = h.mask;
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
             let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
             let [a, b, c] = self.corners;
-            if !in_box_at(self.origin, dir, a, b, c, h.t[l]) {
-                h.mask &= !(1 << l);
-            }
+            let gated = box_gate(self.origin, dir, a, b, c, h.t[l]);
+            gate_lane(&mut h, l, gated, tmin, tmax[l]);
         }
         h
     }
