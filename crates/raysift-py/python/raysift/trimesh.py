@@ -7,14 +7,14 @@ included.
 
 Semantics, where trimesh leaves them to the backend:
 
-- Directions are normalised (as trimesh does), rays start at their origin (t >= 0) and have no
-  end.
+- Directions are normalised (as trimesh does); rays have no end and start just after their origin
+  (t > 0, as Embree's tnear = 0 excludes hits at the origin itself).
 - First hits are raysift's exact closest hits: the smallest t, ties going to the smaller face
   index, both faces of every triangle.
 - ``multiple_hits=True`` lists the surfaces met along each ray as trimesh's Embree backend does:
-  after a hit at distance t the ray is traced again from the same origin over
-  ``t > t + offset``, with ``offset = max(1e-8, 1e-6 * mesh.scale)``, up to ``max_hits`` times; so
-  two faces sharing the hit point (an edge or a vertex) count once.
+  after a hit at distance t the ray is traced again from the same origin from ``t + offset`` on
+  (at least one float32 step past t), with ``offset = max(1e-8, 1e-6 * mesh.scale)``, up to
+  ``max_hits`` times; so two faces sharing the hit point (an edge or a vertex) count once.
 - Locations are computed in float64 on the hit face's plane, as trimesh does.
 
 The raysift scene is made from the mesh on first use and kept; when the mesh's vertices change
@@ -31,6 +31,8 @@ __all__ = ["RayMeshIntersector"]
 
 _OFFSET_FACTOR = 1e-6
 _OFFSET_FLOOR = 1e-8
+# t > 0: the smallest positive float32 as tmin
+_TNEAR = float(np.nextafter(np.float32(0), np.float32(1)))
 
 
 class RayMeshIntersector:
@@ -78,12 +80,17 @@ class RayMeshIntersector:
     def _rays(self, ray_origins, ray_directions):
         origins = np.asarray(ray_origins, dtype=np.float64)
         directions = np.asarray(ray_directions, dtype=np.float64)
+        if origins.ndim == 1 and len(origins) == 3:
+            origins, directions = origins[None], directions.reshape(-1, 3)
         if origins.shape != directions.shape:
             raise ValueError(
                 f"ray_origins {origins.shape} and ray_directions {directions.shape} differ in shape"
             )
         if origins.ndim != 2 or origins.shape[1] != 3:
             raise ValueError(f"ray_origins: shape {origins.shape}; expected (n, 3)")
+        bad = np.nonzero(~np.isfinite(origins).all(axis=1))[0]
+        if len(bad):
+            raise ValueError(f"ray_origins[{bad[0]}]: non-finite coordinate {origins[bad[0]].tolist()}")
         length = np.linalg.norm(directions, axis=1)
         zero = np.nonzero(~(length > 0))[0]
         if len(zero):
@@ -133,7 +140,7 @@ class RayMeshIntersector:
         n = len(origins)
         offset = max(_OFFSET_FLOOR, float(self.mesh.scale) * _OFFSET_FACTOR)
         live = np.arange(n)
-        tmin = np.zeros(n, dtype=np.float64)
+        tmin = np.full(n, _TNEAR, dtype=np.float64)
         tris, rays, ts = [], [], []
         for _ in range(max_hits if multiple_hits else 1):
             if len(live) == 0:
@@ -146,7 +153,11 @@ class RayMeshIntersector:
             rays.append(live[hit])
             ts.append(t)
             live = live[hit]
-            tmin = t + offset
+            # past this hit by the offset, and by at least one float32 step
+            tmin = np.maximum(
+                (t + offset).astype(np.float32),
+                np.nextafter(t.astype(np.float32), np.float32(np.inf)),
+            ).astype(np.float64)
         index_tri = np.concatenate(tris) if tris else np.zeros(0, dtype=np.int64)
         index_ray = np.concatenate(rays) if rays else np.zeros(0, dtype=np.int64)
         if not return_locations:
@@ -169,7 +180,7 @@ class RayMeshIntersector:
     def intersects_first(self, ray_origins, ray_directions, **kwargs):
         """The first face each ray hits, int64 (n,), -1 on a miss."""
         origins, directions = self._rays(ray_origins, ray_directions)
-        prim = self._cast(origins, directions, 0.0)["primitive_ids"]
+        prim = self._cast(origins, directions, _TNEAR)["primitive_ids"]
         out = prim.astype(np.int64)
         out[prim == MISS] = -1
         return out
@@ -181,7 +192,7 @@ class RayMeshIntersector:
         rays[:, 0:3] = origins
         rays[:, 3:6] = directions
         return self.scene.test_occlusions(
-            rays, tracer=self.tracer, threads=self.threads, **self.options
+            rays, tnear=_TNEAR, tracer=self.tracer, threads=self.threads, **self.options
         )
 
     def contains_points(self, points):
