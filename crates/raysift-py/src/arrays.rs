@@ -9,8 +9,8 @@
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use raysift::RayBatch;
 use rayon::prelude::*;
+use raysift::RayBatch;
 
 /// Rays per block of the parallel transposition and validation.
 const BLOCK: usize = 1 << 14;
@@ -181,17 +181,29 @@ pub struct Interval {
     pub tfar: Option<f32>,
 }
 
-/// Transposes `data` (rows of `cols` floats) into a ray batch, checking every ray as the CLI
-/// checks a rays file (finite origin and direction, non-zero direction, no NaN interval). Returns
-/// the first bad ray's index and fault. Runs in the current rayon pool.
-pub fn to_batch(data: &[f32], cols: usize, iv: Interval) -> Result<RayBatch, (usize, BadRay)> {
+/// Transposes `data` (rows of `cols` floats) into `b`, reusing its buffers, checking every ray as
+/// the CLI checks a rays file (finite origin and direction, non-zero direction, no NaN interval).
+/// Returns the first bad ray's index and fault. Runs in the current rayon pool.
+pub fn fill_batch(
+    b: &mut RayBatch,
+    data: &[f32],
+    cols: usize,
+    iv: Interval,
+) -> Result<(), (usize, BadRay)> {
     let n = data.len() / cols;
-    let mut b = RayBatch::default();
     for v in [
-        &mut b.ox, &mut b.oy, &mut b.oz, &mut b.dx, &mut b.dy, &mut b.dz, &mut b.tmin, &mut b.tmax,
+        &mut b.ox,
+        &mut b.oy,
+        &mut b.oz,
+        &mut b.dx,
+        &mut b.dy,
+        &mut b.dz,
+        &mut b.tmin,
+        &mut b.tmax,
     ] {
-        *v = vec![0.0; n];
+        crate::mem::reuse(v, n);
     }
+    b.layout = raysift::rays::RayLayout::Unknown;
     let bad = (
         b.ox.par_chunks_mut(BLOCK),
         b.oy.par_chunks_mut(BLOCK),
@@ -207,39 +219,75 @@ pub fn to_batch(data: &[f32], cols: usize, iv: Interval) -> Result<RayBatch, (us
         .filter_map(|(blk, (ox, oy, oz, dx, dy, dz, tmin, tmax))| {
             let start = blk * BLOCK;
             let rows = &data[start * cols..(start + ox.len()) * cols];
-            for (k, row) in rows.chunks_exact(cols).enumerate() {
-                if !row[..6].iter().all(|x| x.is_finite()) {
-                    return Some((start + k, BadRay::NonFinite));
-                }
-                if row[3] == 0.0 && row[4] == 0.0 && row[5] == 0.0 {
-                    return Some((start + k, BadRay::ZeroDirection));
-                }
-                let (mut lo, mut hi) = if cols == 8 {
-                    if row[6].is_nan() || row[7].is_nan() {
-                        return Some((start + k, BadRay::NanInterval));
-                    }
-                    (row[6], row[7])
-                } else {
-                    (0.0, f32::INFINITY)
-                };
-                // The caller's bounds narrow the rays' own interval (and replace the default).
-                if let Some(t) = iv.tnear {
-                    lo = if cols == 8 { lo.max(t) } else { t };
-                }
-                if let Some(t) = iv.tfar {
-                    hi = if cols == 8 { hi.min(t) } else { t };
-                }
-                (ox[k], oy[k], oz[k]) = (row[0], row[1], row[2]);
-                (dx[k], dy[k], dz[k]) = (row[3], row[4], row[5]);
-                (tmin[k], tmax[k]) = (lo, hi);
-            }
-            None
+            let out = [ox, oy, oz, dx, dy, dz, tmin, tmax];
+            let r = if cols == 8 {
+                fill_block::<8>(rows, out, iv)
+            } else {
+                fill_block::<6>(rows, out, iv)
+            };
+            r.map(|(k, bad)| (start + k, bad))
         })
         .min_by_key(|&(i, _)| i);
     match bad {
-        Some(b) => Err(b),
-        None => Ok(b),
+        Some(bad) => Err(bad),
+        None => Ok(()),
     }
+}
+
+/// What is wrong with one ray of `C` columns, if anything.
+fn check_ray<const C: usize>(row: &[f32]) -> Option<BadRay> {
+    if !row[..6].iter().all(|x| x.is_finite()) {
+        Some(BadRay::NonFinite)
+    } else if row[3] == 0.0 && row[4] == 0.0 && row[5] == 0.0 {
+        Some(BadRay::ZeroDirection)
+    } else if C == 8 && (row[6].is_nan() || row[7].is_nan()) {
+        Some(BadRay::NanInterval)
+    } else {
+        None
+    }
+}
+
+/// One block of rays (L2-sized): a branch-free check of every ray (the faulty one is looked for
+/// only when there is one), then one pass per column, so the loops carry no early exits.
+fn fill_block<const C: usize>(
+    rows: &[f32],
+    [ox, oy, oz, dx, dy, dz, tmin, tmax]: [&mut [f32]; 8],
+    iv: Interval,
+) -> Option<(usize, BadRay)> {
+    let mut ok = true;
+    for row in rows.chunks_exact(C) {
+        let finite = row[..6].iter().fold(true, |a, x| a & x.is_finite());
+        let moving = (row[3] != 0.0) | (row[4] != 0.0) | (row[5] != 0.0);
+        let interval = C == 6 || !(row[6].is_nan() | row[7].is_nan());
+        ok &= finite & moving & interval;
+    }
+    if !ok {
+        return rows
+            .chunks_exact(C)
+            .enumerate()
+            .find_map(|(k, row)| check_ray::<C>(row).map(|bad| (k, bad)));
+    }
+    for (c, col) in [ox, oy, oz, dx, dy, dz].into_iter().enumerate() {
+        for (o, row) in col.iter_mut().zip(rows.chunks_exact(C)) {
+            *o = row[c];
+        }
+    }
+    // The caller's bounds narrow the rays' own interval (8 columns) or replace the default
+    // [0, inf) (6 columns).
+    if C == 8 {
+        for ((lo, hi), row) in tmin
+            .iter_mut()
+            .zip(tmax.iter_mut())
+            .zip(rows.chunks_exact(C))
+        {
+            *lo = iv.tnear.map_or(row[6], |t| row[6].max(t));
+            *hi = iv.tfar.map_or(row[7], |t| row[7].min(t));
+        }
+    } else {
+        tmin.fill(iv.tnear.unwrap_or(0.0));
+        tmax.fill(iv.tfar.unwrap_or(f32::INFINITY));
+    }
+    None
 }
 
 /// Reads `(V, 3)` vertex positions, each finite.
@@ -257,7 +305,10 @@ pub fn vertices<'py>(
         )));
     }
     let s = a.as_slice()?;
-    if let Some(i) = s.chunks_exact(3).position(|p| !p.iter().all(|x| x.is_finite())) {
+    if let Some(i) = s
+        .chunks_exact(3)
+        .position(|p| !p.iter().all(|x| x.is_finite()))
+    {
         return Err(PyValueError::new_err(format!(
             "{name}[{i}]: non-finite coordinate (NaN or infinity): {:?}",
             &s[3 * i..3 * i + 3]

@@ -3,15 +3,21 @@
 //! with no code here.
 //!
 //! - [`scene`]: `raysift.Scene` (meshes, changes, `cast_rays`, `test_occlusions`, `render`);
+//! - [`state`]: what a scene holds (prepared tracers, kept buffers, the last query's stats);
+//! - [`query`]: one query, numpy rays to numpy answers, chunk by chunk, GIL released;
 //! - [`arrays`]: numpy inputs to the library's types, validated, errors naming argument and index;
-//! - [`run`]: thread pools, the GIL released while tracing, chunks with Ctrl-C between them.
+//! - [`run`]: thread pools and chunks (Ctrl-C is checked between them);
+//! - [`mem`]: output arrays on transparent huge pages.
 //!
 //! The Python side (`python/raysift/`) re-exports this module, adds the trimesh adapter, and
 //! carries the type stubs.
 
 mod arrays;
+mod mem;
+mod query;
 mod run;
 mod scene;
+mod state;
 
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -20,8 +26,7 @@ use pyo3::types::{PyDict, PyList};
 
 /// JSON to the equal Python value.
 fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
-    py.import("json")?
-        .call_method1("loads", (v.to_string(),))
+    py.import("json")?.call_method1("loads", (v.to_string(),))
 }
 
 fn counter_list<'py>(
@@ -103,12 +108,13 @@ fn create_rays_pinhole<'py>(
     let c = arrays::vec3(py, center, "center")?.as_dvec3();
     let e = arrays::vec3(py, eye, "eye")?.as_dvec3();
     let u = arrays::vec3(py, up, "up")?.as_dvec3();
-    let forward = (c - e).try_normalize().ok_or_else(|| {
-        PyValueError::new_err("center and eye must be distinct")
-    })?;
-    let right = forward.cross(u).try_normalize().ok_or_else(|| {
-        PyValueError::new_err("up must not be parallel to center - eye")
-    })?;
+    let forward = (c - e)
+        .try_normalize()
+        .ok_or_else(|| PyValueError::new_err("center and eye must be distinct"))?;
+    let right = forward
+        .cross(u)
+        .try_normalize()
+        .ok_or_else(|| PyValueError::new_err("up must not be parallel to center - eye"))?;
     let down = forward.cross(right);
     let focal = 0.5 * width_px as f64 / (0.5 * fov_deg.to_radians()).tan();
     let (cx, cy) = (0.5 * width_px as f64, 0.5 * height_px as f64);

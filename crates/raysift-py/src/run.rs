@@ -12,6 +12,9 @@ use std::sync::{Arc, Mutex};
 /// call, so smaller chunks would cost it time).
 pub const DEFAULT_CHUNK_RAYS: usize = 1 << 20;
 
+/// A pool of the requested size, or `None` for rayon's global pool.
+pub type Pool = Option<Arc<rayon::ThreadPool>>;
+
 /// Worker pools by size, made once (starting threads per call would cost small batches).
 static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
 
@@ -43,9 +46,12 @@ pub fn install<T: Send>(pool: &Option<Arc<rayon::ThreadPool>>, f: impl FnOnce() 
     }
 }
 
-/// Workers `f` would run on in `pool`.
-pub fn threads_of(pool: &Option<Arc<rayon::ThreadPool>>) -> usize {
-    install(pool, rayon::current_num_threads)
+/// Workers of `pool` (no trip into it).
+pub fn threads_of(pool: &Pool) -> usize {
+    match pool {
+        Some(p) => p.current_num_threads(),
+        None => rayon::current_num_threads(),
+    }
 }
 
 /// Cuts a batch of `n` rays with `layout` into chunks of about `chunk` rays, each with the layout

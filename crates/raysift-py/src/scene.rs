@@ -5,120 +5,21 @@
 //! `set_vertices` between casts gets the tracers' update path (refit, DACRT's re-read), not a
 //! fresh build.
 
-use crate::arrays::{self, Interval, RayInput};
+use crate::arrays::{self, Interval};
+use crate::query::{Answer, Query, Request};
 use crate::run::{self, DEFAULT_CHUNK_RAYS};
+use crate::state::{lib_err, Inner};
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyFileNotFoundError, PyNotImplementedError, PyOSError, PyValueError};
+use pyo3::exceptions::{PyNotImplementedError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
 use pyo3::types::PyDict;
-use raysift::rays::{Camera, HitBatch, RayBatch, MISS};
-use raysift::scene::{Mesh, Scene, Stamp};
-use raysift::{tracers, Stats, Tracer};
 use rayon::prelude::*;
-use std::sync::{Arc, Mutex, MutexGuard};
+use raysift::rays::Camera;
+use raysift::scene::{Mesh, Scene};
+use raysift::Stats;
+use std::sync::{Mutex, MutexGuard};
 use std::time::Instant;
-
-/// Prepared tracers kept per scene (the least recently used goes beyond this).
-const MAX_CACHED_TRACERS: usize = 8;
-
-/// Hits per block of the parallel output pass.
-const BLOCK: usize = 1 << 14;
-
-/// A library error as the Python exception a user expects.
-pub fn lib_err(e: raysift::Error) -> PyErr {
-    match &e {
-        raysift::Error::Io { err, .. } if err.kind() == std::io::ErrorKind::NotFound => {
-            PyFileNotFoundError::new_err(e.to_string())
-        }
-        raysift::Error::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.to_string()),
-    }
-}
-
-/// A tracer of the cache, with the scene version it was prepared for.
-struct Cached {
-    name: String,
-    opts: Vec<(String, String)>,
-    tracer: Box<dyn Tracer>,
-    prepared: Option<Stamp>,
-}
-
-/// What the last query did (`Scene.last_stats`).
-#[derive(Clone, Debug, Default)]
-struct LastStats {
-    query: &'static str,
-    tracer: String,
-    opts: Vec<(String, String)>,
-    threads: usize,
-    chunks: usize,
-    prepared: Option<Stats>,
-    trace: Stats,
-    convert_ms: f64,
-    output_ms: f64,
-    total_ms: f64,
-}
-
-struct Inner {
-    scene: Scene,
-    tracers: Vec<Cached>,
-    last: Option<LastStats>,
-}
-
-impl Inner {
-    /// The cache index of tracer `name` with `opts`, created when new (moved to the back: most
-    /// recently used).
-    fn tracer(&mut self, name: &str, opts: Vec<(String, String)>) -> PyResult<usize> {
-        if let Some(i) = self
-            .tracers
-            .iter()
-            .position(|c| c.name == name && c.opts == opts)
-        {
-            let c = self.tracers.remove(i);
-            self.tracers.push(c);
-        } else {
-            let tracer = tracers::create(name, &opts).map_err(lib_err)?;
-            if self.tracers.len() >= MAX_CACHED_TRACERS {
-                self.tracers.remove(0);
-            }
-            self.tracers.push(Cached {
-                name: name.to_string(),
-                opts,
-                tracer,
-                prepared: None,
-            });
-        }
-        Ok(self.tracers.len() - 1)
-    }
-
-    /// Prepares tracer `i` when the scene changed since it last did (GIL released); returns the
-    /// prepare's stats when it ran.
-    fn ready(
-        &mut self,
-        py: Python<'_>,
-        i: usize,
-        pool: &Option<Arc<rayon::ThreadPool>>,
-    ) -> PyResult<Option<Stats>> {
-        let stamp = self.scene.stamp();
-        let (scene, c) = (&self.scene, &mut self.tracers[i]);
-        if c.prepared == Some(stamp) {
-            return Ok(None);
-        }
-        c.prepared = None;
-        let tracer = &mut c.tracer;
-        let s = py
-            .detach(|| run::install(pool, || tracer.prepare_timed(scene)))
-            .map_err(lib_err)?;
-        c.prepared = Some(stamp);
-        Ok(Some(s))
-    }
-}
-
-/// The result of a chunked trace.
-struct Traced<T> {
-    out: T,
-    stats: LastStats,
-}
 
 /// A triangle scene: meshes with rigid transforms, traced by any tracer of `raysift.tracers()`.
 ///
@@ -136,11 +37,7 @@ pub struct PyScene {
 
 fn new_scene(scene: Scene) -> PyScene {
     PyScene {
-        inner: Mutex::new(Inner {
-            scene,
-            tracers: Vec::new(),
-            last: None,
-        }),
+        inner: Mutex::new(Inner::new(scene)),
     }
 }
 
@@ -191,172 +88,6 @@ fn stats_dict<'py>(py: Python<'py>, s: &Stats) -> PyResult<Bound<'py, PyDict>> {
     Ok(d)
 }
 
-/// Which query a chunked trace runs.
-#[derive(Clone, Copy)]
-enum Query {
-    Closest,
-    Any,
-}
-
-/// Converts, validates and traces `input` with tracer `name`: the rays are transposed and checked
-/// with the GIL released, the tracer prepared if the scene changed, then each chunk traced with
-/// the GIL released, checking for Ctrl-C (and any other pending signal) between chunks.
-#[allow(clippy::too_many_arguments)]
-fn trace_chunks<T: Default>(
-    py: Python<'_>,
-    inner: &mut Inner,
-    input: &RayInput<'_>,
-    iv: Interval,
-    name: &str,
-    opts: Vec<(String, String)>,
-    threads: usize,
-    chunk: usize,
-    query: Query,
-    mut merge: impl FnMut(&mut T, std::ops::Range<usize>, Out),
-    mut fresh: impl FnMut(usize) -> T,
-) -> PyResult<Traced<T>> {
-    let t_all = Instant::now();
-    let pool = run::pool(threads)?;
-    let (data, cols, image) = (input.array.as_slice()?, input.cols, input.image());
-    let batch = py.detach(|| {
-        run::install(&pool, || {
-            arrays::to_batch(data, cols, iv).map(|mut b| {
-                b.layout = b.detect_layout(image);
-                b
-            })
-        })
-    });
-    let batch = batch.map_err(|(i, bad)| bad.to_err(input, "rays", i))?;
-    let convert_ms = t_all.elapsed().as_secs_f64() * 1e3;
-    let i = inner.tracer(name, opts.clone())?;
-    let n = batch.len();
-    // No rays: nothing to prepare or trace (the tracer was still made, so a bad name or option
-    // is reported whatever the batch).
-    let prepared = if n == 0 {
-        None
-    } else {
-        inner.ready(py, i, &pool)?
-    };
-    py.check_signals()?;
-    let parts = if n == 0 {
-        vec![]
-    } else {
-        run::chunks(n, batch.layout, chunk)
-    };
-    let mut out = fresh(if parts.len() == 1 { 0 } else { n });
-    let mut trace = Stats::default();
-    let (scene, tracer) = (&inner.scene, inner.tracers[i].tracer.as_ref());
-    for (k, (range, layout)) in parts.iter().enumerate() {
-        let sub: Option<RayBatch> = (parts.len() > 1).then(|| {
-            let mut s = batch.slice(range.clone());
-            s.layout = *layout;
-            s
-        });
-        let rays = sub.as_ref().unwrap_or(&batch);
-        let (res, ms) = py.detach(|| {
-            run::install(&pool, || {
-                let t0 = Instant::now();
-                let r = match query {
-                    Query::Closest => {
-                        let mut hits = HitBatch::new(0);
-                        tracer
-                            .intersect(scene, rays, &mut hits, None)
-                            .map(|s| (Out::Hits(hits), s))
-                    }
-                    Query::Any => {
-                        let mut occ = Vec::new();
-                        tracer
-                            .occluded(scene, rays, &mut occ, None)
-                            .map(|s| (Out::Occluded(occ), s))
-                    }
-                };
-                (r, t0.elapsed().as_secs_f64() * 1e3)
-            })
-        });
-        let (o, mut s) = res.map_err(lib_err)?;
-        s.trace_ms = ms;
-        trace += &s;
-        merge(&mut out, range.clone(), o);
-        if k + 1 < parts.len() {
-            py.check_signals()?;
-        }
-    }
-    Ok(Traced {
-        out,
-        stats: LastStats {
-            query: match query {
-                Query::Closest => "cast_rays",
-                Query::Any => "test_occlusions",
-            },
-            tracer: name.to_string(),
-            opts,
-            threads: run::threads_of(&pool),
-            chunks: parts.len(),
-            prepared,
-            trace,
-            convert_ms,
-            output_ms: 0.0,
-            total_ms: 0.0,
-        },
-    })
-}
-
-/// One chunk's answer.
-enum Out {
-    Hits(HitBatch),
-    Occluded(Vec<bool>),
-}
-
-/// The closest-hit outputs, Open3D's five arrays (flat).
-struct HitArrays {
-    t: Vec<f32>,
-    geometry: Vec<u32>,
-    prim: Vec<u32>,
-    uv: Vec<f32>,
-    normal: Vec<f32>,
-}
-
-/// Splits the library's hits into Open3D's arrays: mesh ids, mesh-local primitive ids, (u, v)
-/// pairs and unit geometric normals (zeros on a miss). Runs in the current rayon pool.
-fn hit_arrays(scene: &Scene, hits: HitBatch) -> HitArrays {
-    let n = hits.len();
-    let HitBatch { t, mut prim, u, v } = hits;
-    let mut geometry = vec![MISS; n];
-    let mut uv = vec![0.0f32; 2 * n];
-    let mut normal = vec![0.0f32; 3 * n];
-    (
-        geometry.par_chunks_mut(BLOCK),
-        prim.par_chunks_mut(BLOCK),
-        uv.par_chunks_mut(2 * BLOCK),
-        normal.par_chunks_mut(3 * BLOCK),
-    )
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(b, (geo, prim, uv, nrm))| {
-            let base = b * BLOCK;
-            for k in 0..geo.len() {
-                uv[2 * k] = u[base + k];
-                uv[2 * k + 1] = v[base + k];
-                let p = prim[k];
-                if p == MISS {
-                    continue;
-                }
-                let g = scene.geometry_of(p);
-                geo[k] = g;
-                prim[k] = p - scene.mesh_prims(g as usize).start as u32;
-                let nv = scene.normal(p as usize);
-                nrm[3 * k..3 * k + 3].copy_from_slice(&nv.to_array());
-            }
-        });
-    HitArrays {
-        t,
-        geometry,
-        prim,
-        uv,
-        normal,
-    }
-}
-
 fn shape_with(lead: &[usize], last: usize) -> Vec<usize> {
     let mut s = lead.to_vec();
     s.push(last);
@@ -365,6 +96,7 @@ fn shape_with(lead: &[usize], last: usize) -> Vec<usize> {
 
 /// A camera as `raysift rays camera` makes it: the default framing of the scene's bounds, then
 /// the given eye, look and up.
+#[allow(clippy::too_many_arguments)]
 fn camera_for(
     py: Python<'_>,
     scene: &Scene,
@@ -376,9 +108,7 @@ fn camera_for(
     fov: f32,
 ) -> PyResult<Camera> {
     if width == 0 || height == 0 {
-        return Err(PyValueError::new_err(
-            "width and height must be at least 1",
-        ));
+        return Err(PyValueError::new_err("width and height must be at least 1"));
     }
     let mut cam = Camera::framing(&scene.bounds(), fov, width as f32 / height as f32);
     if let Some(e) = eye {
@@ -451,9 +181,7 @@ impl PyScene {
     /// The embedded Stanford bunny (16,301 triangles), the CLI's default scene.
     #[staticmethod]
     fn bunny() -> PyResult<Self> {
-        Ok(new_scene(
-            raysift::scene::default_scene().map_err(lib_err)?,
-        ))
+        Ok(new_scene(raysift::scene::default_scene().map_err(lib_err)?))
     }
 
     /// Adds a triangle mesh and returns its geometry id (0, 1, ... in the order added).
@@ -478,11 +206,9 @@ impl PyScene {
             Some(t) => (vertices.clone(), t.clone()),
             None => match (vertices.getattr("vertices"), vertices.getattr("faces")) {
                 (Ok(v), Ok(f)) => (v, f),
-                _ => {
-                    return Err(PyValueError::new_err(
-                        "triangles: missing (pass (T, 3) indices, or a mesh with .vertices and .faces)",
-                    ))
-                }
+                _ => return Err(PyValueError::new_err(
+                    "triangles: missing (pass (T, 3) indices, or a mesh with .vertices and .faces)",
+                )),
             },
         };
         let positions = arrays::vertices(py, &vobj, "vertices")?;
@@ -493,7 +219,11 @@ impl PyScene {
         };
         let mut meshes = self.lock(py).scene.meshes().to_vec();
         let id = meshes.len();
-        let mut mesh = Mesh::new(name.unwrap_or_else(|| format!("mesh{id}")), positions, indices);
+        let mut mesh = Mesh::new(
+            name.unwrap_or_else(|| format!("mesh{id}")),
+            positions,
+            indices,
+        );
         mesh.transform = xf;
         meshes.push(mesh);
         self.rebuild(py, meshes)?;
@@ -567,39 +297,23 @@ impl PyScene {
         let t0 = Instant::now();
         let input = arrays::ray_input(py, rays, "rays")?;
         let opts = options_of(options)?;
-        let lead = input.lead.clone();
         let mut g = self.lock(py);
-        let inner = &mut *g;
-        let traced = trace_chunks(
+        let answer = g.query(
             py,
-            inner,
-            &input,
-            Interval::default(),
-            tracer,
-            opts,
-            threads,
-            chunk_rays.unwrap_or(DEFAULT_CHUNK_RAYS),
-            Query::Closest,
-            |all: &mut HitBatch, r, o| {
-                if let Out::Hits(h) = o {
-                    if all.is_empty() && r.start == 0 && r.len() == h.len() && all.t.capacity() == 0
-                    {
-                        *all = h;
-                    } else {
-                        all.t[r.clone()].copy_from_slice(&h.t);
-                        all.prim[r.clone()].copy_from_slice(&h.prim);
-                        all.u[r.clone()].copy_from_slice(&h.u);
-                        all.v[r].copy_from_slice(&h.v);
-                    }
-                }
+            Request {
+                input: &input,
+                interval: Interval::default(),
+                tracer,
+                opts,
+                threads,
+                chunk_rays: chunk_rays.unwrap_or(DEFAULT_CHUNK_RAYS),
+                query: Query::Closest,
             },
-            HitBatch::new,
         )?;
-        let t_out = Instant::now();
-        let scene = &inner.scene;
-        let pool = run::pool(threads)?;
-        let hits = traced.out;
-        let a = py.detach(|| run::install(&pool, || hit_arrays(scene, hits)));
+        let Answer::Closest(a) = answer else {
+            unreachable!("a closest-hit query answers with hits")
+        };
+        let lead = &input.lead;
         let d = PyDict::new(py);
         d.set_item("t_hit", PyArray1::from_vec(py, a.t).reshape(lead.clone())?)?;
         d.set_item(
@@ -612,16 +326,15 @@ impl PyScene {
         )?;
         d.set_item(
             "primitive_uvs",
-            PyArray1::from_vec(py, a.uv).reshape(shape_with(&lead, 2))?,
+            PyArray1::from_vec(py, a.uv).reshape(shape_with(lead, 2))?,
         )?;
         d.set_item(
             "primitive_normals",
-            PyArray1::from_vec(py, a.normal).reshape(shape_with(&lead, 3))?,
+            PyArray1::from_vec(py, a.normal).reshape(shape_with(lead, 3))?,
         )?;
-        let mut st = traced.stats;
-        st.output_ms = t_out.elapsed().as_secs_f64() * 1e3;
-        st.total_ms = t0.elapsed().as_secs_f64() * 1e3;
-        inner.last = Some(st);
+        if let Some(st) = g.last.as_mut() {
+            st.total_ms = t0.elapsed().as_secs_f64() * 1e3;
+        }
         Ok(d)
     }
 
@@ -651,36 +364,28 @@ impl PyScene {
         }
         let input = arrays::ray_input(py, rays, "rays")?;
         let opts = options_of(options)?;
-        let lead = input.lead.clone();
         let mut g = self.lock(py);
-        let inner = &mut *g;
-        let traced = trace_chunks(
+        let answer = g.query(
             py,
-            inner,
-            &input,
-            Interval { tnear, tfar },
-            tracer,
-            opts,
-            threads,
-            chunk_rays.unwrap_or(DEFAULT_CHUNK_RAYS),
-            Query::Any,
-            |all: &mut Vec<bool>, r, o| {
-                if let Out::Occluded(occ) = o {
-                    if all.is_empty() && r.start == 0 && all.capacity() == 0 {
-                        *all = occ;
-                    } else {
-                        all[r].copy_from_slice(&occ);
-                    }
-                }
+            Request {
+                input: &input,
+                interval: Interval { tnear, tfar },
+                tracer,
+                opts,
+                threads,
+                chunk_rays: chunk_rays.unwrap_or(DEFAULT_CHUNK_RAYS),
+                query: Query::Any,
             },
-            |n| vec![false; n],
         )?;
-        let out = PyArray1::from_vec(py, traced.out)
-            .reshape(lead)?
+        let Answer::Any(occ) = answer else {
+            unreachable!("an any-hit query answers with flags")
+        };
+        let out = PyArray1::from_vec(py, occ)
+            .reshape(input.lead.clone())?
             .into_any();
-        let mut st = traced.stats;
-        st.total_ms = t0.elapsed().as_secs_f64() * 1e3;
-        inner.last = Some(st);
+        if let Some(st) = g.last.as_mut() {
+            st.total_ms = t0.elapsed().as_secs_f64() * 1e3;
+        }
         Ok(out)
     }
 
@@ -891,7 +596,8 @@ impl PyScene {
 
     /// What the last ``cast_rays`` or ``test_occlusions`` did, or None: ``query``, ``tracer``,
     /// ``options``, ``threads``, ``chunks``, ``rays``, ``prepare`` (the tracer's prepare stats
-    /// when this call prepared it, else None), ``trace_ms`` (the library's intersect calls alone,
+    /// when this call prepared it, else None), ``layout`` (the ray groups recognised, e.g.
+    /// ``Pinhole { .. }``: DACRT's camera packets), ``trace_ms`` (the library's intersect calls alone,
     /// as ``raysift trace`` times them), ``convert_ms`` (input transposition, validation and
     /// layout recognition), ``output_ms`` (the output arrays), ``total_ms`` (the whole call), and
     /// the tracer's ``work`` counters.
@@ -912,6 +618,7 @@ impl PyScene {
         d.set_item("options", o)?;
         d.set_item("threads", s.threads)?;
         d.set_item("chunks", s.chunks)?;
+        d.set_item("layout", &s.layout)?;
         d.set_item("rays", s.trace.rays)?;
         d.set_item(
             "prepare",

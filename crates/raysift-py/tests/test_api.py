@@ -245,3 +245,14 @@ def test_readme_example_runs(tmp_path):
 
     img = np.asarray(Image.open(tmp_path / "depth.png"))
     assert img.ndim == 2 and img.max() > 200 and (img == 0).mean() > 0.2
+
+
+def test_normals_per_hit_and_per_triangle_agree():
+    """Large batches take the normals from a per-triangle table, small ones compute them per hit:
+    the same numbers either way."""
+    rays = raysift.Scene.load(str(BUNNY)).camera_rays(128, 128)  # 16,384 rays >= half the triangles
+    small = raysift.Scene.load(str(BUNNY))
+    few = small.cast_rays(rays[60:64], tracer="bvh")  # per hit
+    big = raysift.Scene.load(str(BUNNY)).cast_rays(rays, tracer="bvh")  # per triangle
+    np.testing.assert_array_equal(few["primitive_normals"], big["primitive_normals"][60:64])
+    assert (np.linalg.norm(few["primitive_normals"], axis=-1)[few["t_hit"] < np.inf] > 0.999).all()
