@@ -13,10 +13,11 @@ the tables give medians over rounds:
   call, as a renderer's tracer is between frames of a static scene.
 - ``cli``: ``raysift trace SCENE --rays RAYS --tracer T --threads N --repeat 3 --json``: its
   ``trace_ms`` (median of the 3 in-process runs).
-- ``embreex``: ``EmbreeScene`` + ``TriangleMesh`` over the same world triangles (build), then
-  ``scene.run(origins, directions, output=1)`` (trace: embreex's loop of rtcIntersect1 calls, one
-  thread whatever ``--threads``; the build uses TBB's threads: run the script under
-  ``taskset -c 0`` for one).
+- ``embreex``: ``EmbreeScene`` + ``TriangleMesh`` over the same world triangles and a first
+  one-ray ``run`` (embreex commits, i.e. builds its BVH, then): the build; then
+  ``scene.run(origins, directions)`` (primitive ids only) and ``run(..., output=1)`` (t, u, v, Ng,
+  ids): embreex's loop of rtcIntersect1 calls, one thread whatever ``--threads`` (the build uses
+  TBB's threads: run the script under ``taskset -c 0`` for one).
 - ``trimesh``: ``trimesh.Trimesh(...).ray.intersects_first(origins, directions)``, trimesh's default
   backend (``ray_pyembree`` when embreex is installed), first call (builds its Embree scene) and a
   second call.
@@ -61,7 +62,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--tracers", default="bvh,dacrt")
     ap.add_argument("--contenders", default="py,cli,embreex,trimesh,trimesh-triangle")
-    ap.add_argument("--subset-triangle", type=int, default=16384)
+    ap.add_argument("--subset-triangle", type=int, default=4096)
     ap.add_argument("--json")
     a = ap.parse_args()
     tracers = a.tracers.split(",")
@@ -107,11 +108,17 @@ def main():
             t1 = time.perf_counter()
             es = rtcore_scene.EmbreeScene()
             TriangleMesh(es, tris)
+            es.run(origins[:1], dirs[:1])  # embreex commits (builds the BVH) on the first run
             build = (time.perf_counter() - t1) * 1e3
+            t1 = time.perf_counter()
+            ids = es.run(origins, dirs)
+            ids_ms = (time.perf_counter() - t1) * 1e3
             t1 = time.perf_counter()
             e = es.run(origins, dirs, output=1)
             trace = (time.perf_counter() - t1) * 1e3
-            res["embreex"].append(dict(build_ms=build, trace_ms=trace, hits=int((e["primID"] != -1).sum())))
+            assert np.array_equal(ids, e["primID"])
+            res["embreex"].append(dict(build_ms=build, trace_ms=trace, ids_ms=ids_ms,
+                                       hits=int((e["primID"] != -1).sum())))
             del es
         if "trimesh" in contenders:
             import trimesh
@@ -145,24 +152,35 @@ def main():
     def med(rows, key):
         return statistics.median(r[key] for r in rows) if rows else float("nan")
 
+    def lo(rows, key):
+        return min(r[key] for r in rows) if rows else float("nan")
+
     out = dict(scene=a.scene, triangles=len(scene), rays=n, shape=list(rays.shape), threads=a.threads,
                rounds=a.rounds, prepare_ms=prepared, runs=res)
-    print(f"\n| contender | threads | trace ms (median of {a.rounds}) | vs CLI | notes |")
+    print(f"\n| contender | threads | ms, median of {a.rounds} (min) | vs CLI (min vs min) | notes |")
     print("|---|---:|---:|---:|---|")
     for t in tracers:
-        cli = med(res[f"cli:{t}"], "trace_ms")
+        cli, cli_lo = med(res[f"cli:{t}"], "trace_ms"), lo(res[f"cli:{t}"], "trace_ms")
         if res[f"cli:{t}"]:
-            print(f"| CLI `raysift trace --tracer {t}` | {a.threads} | {cli:.1f} | 1.00 | prepare {med(res[f'cli:{t}'], 'prepare_ms'):.1f} ms (every run) |")
+            print(f"| CLI `raysift trace --tracer {t}`: trace | {a.threads} | {cli:.1f} ({cli_lo:.1f}) | 1.00 | "
+                  f"prepare {med(res[f'cli:{t}'], 'prepare_ms'):.1f} ms (every run) |")
         if res[f"py:{t}"]:
-            tot, tr = med(res[f"py:{t}"], "total_ms"), med(res[f"py:{t}"], "trace_ms")
-            cv, ou = med(res[f"py:{t}"], "convert_ms"), med(res[f"py:{t}"], "output_ms")
-            print(f"| Python `cast_rays(tracer=\"{t}\")`, whole call | {a.threads} | {tot:.1f} | {tot / cli:.3f} | "
-                  f"of which the library's trace {tr:.1f} ms ({tr / cli:.3f}), input {cv:.1f}, outputs {ou:.1f}; prepared once: {prepared.get(t, 0):.1f} ms |")
+            rows = res[f"py:{t}"]
+            tot, tr = med(rows, "total_ms"), med(rows, "trace_ms")
+            cv, ou = med(rows, "convert_ms"), med(rows, "output_ms")
+            print(f"| Python `cast_rays(tracer=\"{t}\")`: whole call | {a.threads} | {tot:.1f} ({lo(rows, 'total_ms'):.1f}) | "
+                  f"{tot / cli:.3f} ({lo(rows, 'total_ms') / cli_lo:.3f}) | input {cv:.1f} ms, outputs {ou:.1f} ms; "
+                  f"prepared once before: {prepared.get(t, 0):.1f} ms |")
+            print(f"| Python, the library's trace inside the call | {a.threads} | {tr:.1f} ({lo(rows, 'trace_ms'):.1f}) | "
+                  f"{tr / cli:.3f} ({lo(rows, 'trace_ms') / cli_lo:.3f}) | `last_stats[\"trace_ms\"]` |")
     if res["embreex"]:
-        print(f"| embreex `run(o, d, output=1)` | 1 (serial loop) | {med(res['embreex'], 'trace_ms'):.1f} | | build {med(res['embreex'], 'build_ms'):.1f} ms |")
+        e = res["embreex"]
+        print(f"| embreex `run(o, d)` (ids only) | 1 (serial loop) | {med(e, 'ids_ms'):.1f} ({lo(e, 'ids_ms'):.1f}) | | build {med(e, 'build_ms'):.1f} ms |")
+        print(f"| embreex `run(o, d, output=1)` (t, u, v, Ng, ids) | 1 (serial loop) | {med(e, 'trace_ms'):.1f} ({lo(e, 'trace_ms'):.1f}) | | |")
     if res["trimesh"]:
-        print(f"| trimesh default `mesh.ray.intersects_first` ({res['trimesh'][0]['backend']}) | 1 (serial loop) | "
-              f"{med(res['trimesh'], 'trace_ms'):.1f} | | first call (builds) {med(res['trimesh'], 'first_call_ms'):.1f} ms |")
+        tm = res["trimesh"]
+        print(f"| trimesh default `mesh.ray.intersects_first` ({tm[0]['backend']}) | 1 (serial loop) | "
+              f"{med(tm, 'trace_ms'):.1f} ({lo(tm, 'trace_ms'):.1f}) | | first call (builds) {med(tm, 'first_call_ms'):.1f} ms |")
     if res["trimesh-triangle"]:
         r0 = res["trimesh-triangle"][0]
         print(f"| trimesh `ray_triangle.intersects_first` (pure numpy + rtree) | 1 | {r0['trace_ms']:.0f} (scaled) | | "

@@ -29,7 +29,9 @@ use std::time::Instant;
 /// updates its tracer (refit, re-read) instead of building it anew.
 ///
 /// Names follow Open3D's ``RaycastingScene`` where the concept is the same. A scene serves one
-/// query at a time: a second thread's call waits for the first to finish.
+/// query at a time: a second thread's call waits for the first to finish. It keeps its prepared
+/// tracers (one per tracer name and options, at most 8) and the ray and hit buffers of its last
+/// query (48 bytes per ray), so repeated queries touch no fresh memory for them.
 #[pyclass(name = "Scene", module = "raysift", frozen)]
 pub struct PyScene {
     inner: Mutex<Inner>,
