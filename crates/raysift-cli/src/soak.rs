@@ -37,9 +37,10 @@ pub struct SoakArgs {
     /// Folder for the reproductions of disagreeing cases.
     #[arg(long, default_value = "soak-failures")]
     out: PathBuf,
-    /// Fail when a tracer takes more than this many times naive's time on a case (prepare and
-    /// trace, naive's time counted from 1 ms up).
-    #[arg(long, default_value_t = 50.0)]
+    /// Fail when a tracer's default configuration takes more than this many times naive's time
+    /// on a case (prepare and both queries; naive's time counted from 2 ms up). Presets' ratios
+    /// are reported, not limited.
+    #[arg(long, default_value_t = 20.0)]
     max_time_ratio: f64,
     /// Print the report as JSON.
     #[arg(long)]
@@ -134,7 +135,7 @@ pub fn run(a: &SoakArgs) -> Result<()> {
     if let Some(t) = report
         .tracers
         .iter()
-        .find(|t| t.worst_time_ratio > a.max_time_ratio)
+        .find(|t| t.default && t.worst_time_ratio > a.max_time_ratio)
     {
         bail!(
             "{} took {:.1}x naive's time on {} (limit {}x)",

@@ -84,11 +84,37 @@ pub fn intersect_triangle(
     if !(v >= 0.0 && u + v <= 1.0) {
         return None;
     }
-    let t = box_gate(origin, dir, v0, v1, v2, e2.dot(q) * inv_det)?;
+    let t = e2.dot(q) * inv_det;
+    let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
+    let reach = GATE_TOLERANCE * gate_scale(origin, lo, hi);
+    let dmax = dir.abs().max_element();
+    if !may_reach(t, tmin, tmax, dmax, reach) {
+        return None;
+    }
+    let t = box_gate(origin, dir, lo, hi, t, reach, dmax)?;
     if !(t >= tmin && t <= tmax) {
         return None;
     }
     Some(TriHit { t, u, v })
+}
+
+/// The largest coordinate magnitude of the ray's origin and the triangle's box `[lo, hi]` (that
+/// of its corners): the scale [`box_gate`]'s tolerance is relative to (`max` is exact, so any
+/// order of evaluation gives this value).
+#[inline(always)]
+pub fn gate_scale(origin: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    origin.abs().max(lo.abs()).max(hi.abs()).max_element()
+}
+
+/// False only when [`box_gate`] cannot move `t` into `[tmin, tmax]`: it moves `t` by at most
+/// `reach / dmax` (`reach = GATE_TOLERANCE · gate_scale`, `dmax = |dir|∞`), and its own check
+/// `|t − moved| · dmax <= reach` implies `(t − tmax) · dmax <= reach` when `moved <= tmax < t`
+/// (f32 subtraction and multiplication are monotone), likewise below `tmin`. So this cheap test,
+/// run first, never changes a result; it spares the gate's divisions for the many candidates
+/// that lie beyond the closest hit so far. A NaN `t` fails it (as it fails the gate).
+#[inline(always)]
+pub fn may_reach(t: f32, tmin: f32, tmax: f32, dmax: f32, reach: f32) -> bool {
+    (t - tmax) * dmax <= reach && (tmin - t) * dmax <= reach
 }
 
 /// How far (in coordinate units, relative to the largest coordinate of the ray's origin and the
@@ -108,10 +134,19 @@ pub const GATE_TOLERANCE: f32 = 1.0 / 16384.0;
 /// ulps, and the Möller–Trumbore `t` of a ray far from `v0` is off by more than that; the moved
 /// `t` is the better one (one subtraction and one multiplication from the plane). The result
 /// does not depend on the ray's `[tmin, tmax]`, so every traversal order sees the same hit.
-/// Evaluated only for candidates that passed the barycentric tests.
+/// Evaluated only for candidates that passed the barycentric tests and [`may_reach`]; `[lo, hi]`
+/// is the triangle's box, `reach = GATE_TOLERANCE · gate_scale(origin, lo, hi)` and
+/// `dmax = |dir|∞` (passed in: four-wide tests compute them once for all lanes).
 #[inline(always)]
-pub fn box_gate(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, t: f32) -> Option<f32> {
-    let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
+pub fn box_gate(
+    origin: Vec3,
+    dir: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+    t: f32,
+    reach: f32,
+    dmax: f32,
+) -> Option<f32> {
     let (enter, exit) =
         super::SlabRay::new(origin, dir).interval(lo, hi, f32::NEG_INFINITY, f32::INFINITY)?;
     let moved = if t < enter {
@@ -121,9 +156,8 @@ pub fn box_gate(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, t: f32) -
     } else {
         t
     };
-    let scale = origin.abs().max(lo.abs()).max(hi.abs()).max_element();
     // A NaN `t` (or scale) fails this comparison.
-    if (t - moved).abs() * dir.abs().max_element() <= GATE_TOLERANCE * scale {
+    if (t - moved).abs() * dmax <= reach {
         Some(moved)
     } else {
         None

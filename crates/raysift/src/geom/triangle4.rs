@@ -14,7 +14,7 @@
 //!
 //! [`intersect_triangle`]: super::intersect_triangle
 
-use super::triangle::box_gate;
+use super::triangle::{box_gate, gate_scale, GATE_TOLERANCE};
 use glam::{Vec3, Vec4};
 
 /// Four triangles, per axis and lane (`v0[axis]` holds the four lanes' first corners' `axis`
@@ -28,8 +28,10 @@ pub struct Tri4 {
     pub e1: [Vec4; 3],
     /// `v2 − v0`.
     pub e2: [Vec4; 3],
-    /// Each lane's corners, for the box gate.
-    pub corners: [[Vec3; 3]; 4],
+    /// Each lane's bounding box `[lo, hi]`, for the box gate.
+    pub boxes: [[Vec3; 2]; 4],
+    /// Each lane's largest corner coordinate magnitude (the gate's scale with the origin at 0).
+    pub scale: Vec4,
 }
 
 impl Tri4 {
@@ -42,7 +44,9 @@ impl Tri4 {
             self.e1[k][l] = e1[k];
             self.e2[k][l] = e2[k];
         }
-        self.corners[l] = [a, b, c];
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        self.boxes[l] = [lo, hi];
+        self.scale[l] = gate_scale(Vec3::ZERO, lo, hi);
     }
 }
 
@@ -96,12 +100,19 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let v = dot(d, q) * inv_det;
     let t = dot(e2, q) * inv_det;
     let mut h = accept(det, u, v, t);
+    if h.mask == 0 {
+        return h;
+    }
+    let scale = tri.scale.max(Vec4::splat(origin.abs().max_element()));
+    let reach = Vec4::splat(GATE_TOLERANCE) * scale;
+    let dmax = dir.abs().max_element();
+    h.mask &= may_reach(t, tmin, Vec4::splat(tmax), Vec4::splat(dmax), reach).bitmask();
     let mut m = h.mask;
     while m != 0 {
         let l = m.trailing_zeros() as usize;
         m &= m - 1;
-        let [a, b, c] = tri.corners[l];
-        let gated = box_gate(origin, dir, a, b, c, h.t[l]);
+        let [lo, hi] = tri.boxes[l];
+        let gated = box_gate(origin, dir, lo, hi, h.t[l], reach[l], dmax);
         gate_lane(&mut h, l, gated, tmin, tmax);
     }
     h
@@ -109,7 +120,8 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
 
 /// The scalar test's barycentric accept conditions, in its order, lane-wise; a NaN fails every
 /// comparison but `!=` (as in the scalar test, whose NaN `det` then fails `u >= 0`). The box
-/// gate and the range test follow per accepted lane ([`gate_lane`]).
+/// gate and the range test follow per accepted lane ([`gate_lane`]), for lanes that
+/// [`may_reach`] the ray's range (computed only when some lane passed).
 #[inline(always)]
 fn accept(det: L, u: L, v: L, t: L) -> Hit4 {
     let (zero, one) = (Vec4::ZERO, Vec4::ONE);
@@ -133,6 +145,12 @@ fn gate_lane(h: &mut Hit4, l: usize, gated: Option<f32>, tmin: f32, tmax: f32) {
     }
 }
 
+/// [`super::triangle::may_reach`] lane-wise (same operations, so the same decision).
+#[inline(always)]
+fn may_reach(t: L, tmin: f32, tmax: L, dmax: L, reach: L) -> glam::BVec4A {
+    ((t - tmax) * dmax).cmple(reach) & ((Vec4::splat(tmin) - t) * dmax).cmple(reach)
+}
+
 /// One triangle prepared for rays that share an origin (a camera's eye): the parts of
 /// [`super::intersect_triangle`] that depend only on the triangle and the origin (`e1 = v1 − v0`,
 /// `e2 = v2 − v0`, `s = origin − v0`, `q = s × e1` and `e2·q`) are computed once, by the scalar
@@ -141,12 +159,16 @@ fn gate_lane(h: &mut Hit4, l: usize, gated: Option<f32>, tmin: f32, tmax: f32) {
 #[derive(Clone, Copy, Debug)]
 pub struct TriFromOrigin {
     origin: Vec3,
-    corners: [Vec3; 3],
+    /// The triangle's bounding box.
+    lo: Vec3,
+    hi: Vec3,
     e1: [Vec4; 3],
     e2: [Vec4; 3],
     s: [Vec4; 3],
     q: [Vec4; 3],
     tq: Vec4,
+    /// `GATE_TOLERANCE · gate_scale(origin, corners)`.
+    reach: Vec4,
 }
 
 impl TriFromOrigin {
@@ -155,15 +177,18 @@ impl TriFromOrigin {
     pub fn new(origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
         let (e1, e2, s) = (v1 - v0, v2 - v0, origin - v0);
         let q = s.cross(e1);
+        let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
         let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
             origin,
-            corners: [v0, v1, v2],
+            lo,
+            hi,
             e1: splat(e1),
             e2: splat(e2),
             s: splat(s),
             q: splat(q),
             tq: Vec4::splat(e2.dot(q)),
+            reach: Vec4::splat(GATE_TOLERANCE * gate_scale(origin, lo, hi)),
         }
     }
 
@@ -178,13 +203,18 @@ impl TriFromOrigin {
         let v = dot(d, self.q) * inv_det;
         let t = self.tq * inv_det;
         let mut h = accept(det, u, v, t);
+        if h.mask == 0 {
+            return h;
+        }
+        let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
+        h.mask &= may_reach(t, tmin, tmax, dmax, self.reach).bitmask();
         let mut m = h.mask;
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
             let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            let [a, b, c] = self.corners;
-            let gated = box_gate(self.origin, dir, a, b, c, h.t[l]);
+            let (reach, dmax) = (self.reach[l], dmax[l]);
+            let gated = box_gate(self.origin, dir, self.lo, self.hi, h.t[l], reach, dmax);
             gate_lane(&mut h, l, gated, tmin, tmax[l]);
         }
         h
