@@ -107,21 +107,25 @@ pub fn gate_scale(origin: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 }
 
 /// False only when [`box_gate`] cannot move `t` into `[tmin, tmax]`: it moves `t` by at most
-/// `reach / dmax` (`reach = GATE_TOLERANCE · gate_scale`, `dmax = |dir|∞`), and its own check
-/// `|t − moved| · dmax <= reach` implies `(t − tmax) · dmax <= reach` when `moved <= tmax < t`
-/// (f32 subtraction and multiplication are monotone), likewise below `tmin`. So this cheap test,
+/// `reach / |dir|∞` (`reach = GATE_TOLERANCE · gate_scale`), and its own check
+/// `|t − moved| · |dir|∞ <= reach` implies `(t − tmax) · dmax <= reach` when `moved <= tmax < t`
+/// for any `0 <= dmax <= |dir|∞` (f32 subtraction and multiplication are monotone), likewise
+/// below `tmin`; `dmax` may so be a lower bound shared by many rays. So this cheap test,
 /// run first, never changes a result; it spares the gate's divisions for the many candidates
-/// that lie beyond the closest hit so far. A NaN `t` fails it (as it fails the gate).
+/// that lie beyond the closest hit so far. A NaN product (`∞ · 0`, a NaN `t`) passes: the gate
+/// decides.
 #[inline(always)]
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn may_reach(t: f32, tmin: f32, tmax: f32, dmax: f32, reach: f32) -> bool {
-    (t - tmax) * dmax <= reach && (tmin - t) * dmax <= reach
+    !((t - tmax) * dmax > reach) && !((tmin - t) * dmax > reach)
 }
 
 /// How far (in coordinate units, relative to the largest coordinate of the ray's origin and the
 /// triangle's corners) the Möller–Trumbore point may lie off the triangle's box and still be
-/// moved into it by [`box_gate`]: `2^-14`, about 1000 times the test's own rounding on a
-/// well-conditioned ray, far below the phantom hits it refuses (BENCHMARKS.md, "The exact
-/// contract").
+/// moved into it by [`box_gate`] (measured along the ray as `|Δt| · |dir|∞`): `2^-14`, that is
+/// 512 to 1024 units in the last place of the largest coordinate, room for the test's rounding
+/// on rays down to a fraction of a degree from the plane, and far below the phantom hits it
+/// refuses (BENCHMARKS.md, "The exact contract").
 pub const GATE_TOLERANCE: f32 = 1.0 / 16384.0;
 
 /// The box gate: the candidate distance `t` moved into the triangle's slab interval (the shared

@@ -148,7 +148,7 @@ fn gate_lane(h: &mut Hit4, l: usize, gated: Option<f32>, tmin: f32, tmax: f32) {
 /// [`super::triangle::may_reach`] lane-wise (same operations, so the same decision).
 #[inline(always)]
 fn may_reach(t: L, tmin: f32, tmax: L, dmax: L, reach: L) -> glam::BVec4A {
-    ((t - tmax) * dmax).cmple(reach) & ((Vec4::splat(tmin) - t) * dmax).cmple(reach)
+    !(((t - tmax) * dmax).cmpgt(reach) | ((Vec4::splat(tmin) - t) * dmax).cmpgt(reach))
 }
 
 /// One triangle prepared for rays that share an origin (a camera's eye): the parts of
@@ -193,9 +193,11 @@ impl TriFromOrigin {
     }
 
     /// [`super::intersect_triangle`] of the four rays `origin + t·d[·][l]` (directions per axis
-    /// and lane), each with `tmin <= t <= tmax[l]`.
+    /// and lane), each with `tmin <= t <= tmax[l]`. `dlow` is a lower bound of every lane's
+    /// `|d|∞` (0 when unknown): the gate's pre-test then needs no per-lane norm (a smaller
+    /// bound only lets more lanes reach the gate, which decides; see [`may_reach`]).
     #[inline(always)]
-    pub fn intersect4(&self, d: [Vec4; 3], tmin: f32, tmax: Vec4) -> Hit4 {
+    pub fn intersect4(&self, d: [Vec4; 3], tmin: f32, tmax: Vec4, dlow: f32) -> Hit4 {
         let p = cross(d, self.e2);
         let det = dot(self.e1, p);
         let inv_det = Vec4::ONE / det;
@@ -206,14 +208,13 @@ impl TriFromOrigin {
         if h.mask == 0 {
             return h;
         }
-        let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
-        h.mask &= may_reach(t, tmin, tmax, dmax, self.reach).bitmask();
+        h.mask &= may_reach(t, tmin, tmax, Vec4::splat(dlow), self.reach).bitmask();
         let mut m = h.mask;
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
             let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            let (reach, dmax) = (self.reach[l], dmax[l]);
+            let (reach, dmax) = (self.reach[l], dir.abs().max_element());
             let gated = box_gate(self.origin, dir, self.lo, self.hi, h.t[l], reach, dmax);
             gate_lane(&mut h, l, gated, tmin, tmax[l]);
         }
@@ -333,7 +334,15 @@ mod tests {
                 }
             });
             let d4 = [0, 1, 2].map(|k| Vec4::from_array(dirs.map(|d| d[k])));
-            let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax));
+            // The pre-test's bound: exact, or none.
+            let dlow = if n % 2 == 0 {
+                dirs.iter()
+                    .map(|d| d.abs().max_element())
+                    .fold(f32::INFINITY, f32::min)
+            } else {
+                0.0
+            };
+            let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax), dlow);
             for l in 0..4 {
                 let s = intersect_triangle(o, dirs[l], a, b, c, tmin, tmax[l]);
                 same_lane(s, &h, l, n, &mut checked);

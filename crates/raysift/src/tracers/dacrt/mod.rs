@@ -273,6 +273,8 @@ struct Task<'a, const ANY: bool> {
     /// any-hit: `tmax`), so a pair reads one 16-byte record; `tmin0` is every ray's `tmin`.
     tile_rays: Vec<Vec4>,
     tmin0: f32,
+    /// Tile leaves: the smallest `|d|∞` of the task's rays (the box gate's pre-test bound).
+    dlow: f32,
     touched: Vec<u64>,
     touched_list: Vec<u32>,
     st: Counts,

@@ -170,6 +170,7 @@ impl Dacrt {
             rects: reuse(sc.rects, 0, huge),
             tile_rays: reuse(sc.tile_rays, 0, huge),
             tmin0: 0.0,
+            dlow: 0.0,
             touched: reuse(sc.touched, 0, huge),
             touched_list: reuse(sc.touched_list, 0, huge),
             st: Counts::default(),
@@ -233,6 +234,9 @@ impl Dacrt {
                 if self.cfg.pixel_leaf && uniform && tiles_fit {
                     task.tile_leaves = true;
                     task.tmin0 = tmin0;
+                    task.dlow = (range.clone())
+                        .map(|i| rays.dx[i].abs().max(rays.dy[i].abs()).max(rays.dz[i].abs()))
+                        .fold(f32::INFINITY, f32::min);
                     let tr = std::mem::take(&mut task.tile_rays);
                     task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows, huge);
                     reserve_exact_huge(&mut task.rects, ntri, huge);

@@ -155,7 +155,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         while m != 0 {
             let (bits, lanes) = pop4(&mut m);
             let (d, cut) = self.tile_lanes(tile, bits);
-            let h = tri.intersect4(d, self.tmin0, cut);
+            let h = tri.intersect4(d, self.tmin0, cut, self.dlow);
             let mut hit = h.mask & ((1 << lanes) - 1);
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
