@@ -91,7 +91,7 @@ pub fn intersect_triangle(
     if !may_reach(t, tmin, tmax, dmax, reach) {
         return None;
     }
-    let t = box_gate(origin, dir, lo, hi, t, reach, dmax)?;
+    let t = box_gate(origin, dir, lo, hi, t, reach)?;
     if !(t >= tmin && t <= tmax) {
         return None;
     }
@@ -139,29 +139,19 @@ pub const GATE_TOLERANCE: f32 = 1.0 / 16384.0;
 /// `t` is the better one (one subtraction and one multiplication from the plane). The result
 /// does not depend on the ray's `[tmin, tmax]`, so every traversal order sees the same hit.
 /// Evaluated only for candidates that passed the barycentric tests and [`may_reach`]; `[lo, hi]`
-/// is the triangle's box, `reach = GATE_TOLERANCE · gate_scale(origin, lo, hi)` and
-/// `dmax = |dir|∞` (passed in: four-wide tests compute them once for all lanes).
+/// is the triangle's box and `reach = GATE_TOLERANCE · gate_scale(origin, lo, hi)` (passed in:
+/// four-wide tests compute it once per triangle). A `t` inside the interval is kept as it is
+/// (most candidates: `|dir|∞` is then not needed).
 #[inline(always)]
-pub fn box_gate(
-    origin: Vec3,
-    dir: Vec3,
-    lo: Vec3,
-    hi: Vec3,
-    t: f32,
-    reach: f32,
-    dmax: f32,
-) -> Option<f32> {
+pub fn box_gate(origin: Vec3, dir: Vec3, lo: Vec3, hi: Vec3, t: f32, reach: f32) -> Option<f32> {
     let (enter, exit) =
         super::SlabRay::new(origin, dir).interval(lo, hi, f32::NEG_INFINITY, f32::INFINITY)?;
-    let moved = if t < enter {
-        enter
-    } else if t > exit {
-        exit
-    } else {
-        t
-    };
+    if t >= enter && t <= exit {
+        return Some(t);
+    }
+    let moved = if t < enter { enter } else { exit };
     // A NaN `t` (or scale) fails this comparison.
-    if (t - moved).abs() * dmax <= reach {
+    if (t - moved).abs() * dir.abs().max_element() <= reach {
         Some(moved)
     } else {
         None

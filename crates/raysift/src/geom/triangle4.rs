@@ -15,7 +15,7 @@
 //! [`intersect_triangle`]: super::intersect_triangle
 
 use super::triangle::{box_gate, gate_scale, GATE_TOLERANCE};
-use glam::{Vec3, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 
 /// Four triangles, per axis and lane (`v0[axis]` holds the four lanes' first corners' `axis`
 /// coordinate), as the first corner and the two edges from it. Unused lanes may hold anything
@@ -112,7 +112,7 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
         let l = m.trailing_zeros() as usize;
         m &= m - 1;
         let [lo, hi] = tri.boxes[l];
-        let gated = box_gate(origin, dir, lo, hi, h.t[l], reach[l], dmax);
+        let gated = box_gate(origin, dir, lo, hi, h.t[l], reach[l]);
         gate_lane(&mut h, l, gated, tmin, tmax);
     }
     h
@@ -168,16 +168,34 @@ pub struct TriFromOrigin {
     q: [Vec4; 3],
     tq: Vec4,
     /// `GATE_TOLERANCE · gate_scale(origin, corners)`.
-    reach: Vec4,
+    reach: f32,
+    /// How far beyond `[tmin, tmax]` a lane's `t` may lie and still be moved into it by the
+    /// gate (see [`Self::new`]).
+    beyond: f32,
 }
 
 impl TriFromOrigin {
-    /// Triangle `(v0, v1, v2)` seen from `origin`.
+    /// Triangle `(v0, v1, v2)` seen from `origin`, for rays whose `|d|∞` are all at least
+    /// `dlow` (0 when unknown).
+    ///
+    /// The gate's pre-test in [`Self::intersect4`] is then a range test widened by
+    /// `beyond = reach / dlow · (1 + 10^-4)`: a candidate the gate accepts into `[tmin, tmax]`
+    /// from `t > tmax` has `fl(t − moved) · dmax <= reach` (within one rounding), so in real
+    /// numbers `t − tmax <= t − moved <= reach · (1 + 2^-21) / dmax <= reach · (1 + 2^-21) / dlow
+    /// <= beyond` (the two f32 roundings of `beyond` lose less than `10^-4` gains), hence
+    /// `t <= fl(tmax + beyond)` (rounding is monotone and `t` is a float); likewise below `tmin`.
+    /// So the widened test drops only lanes the gate would refuse, at the cost of one add.
     #[inline(always)]
-    pub fn new(origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
+    pub fn new(origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3, dlow: f32) -> Self {
         let (e1, e2, s) = (v1 - v0, v2 - v0, origin - v0);
         let q = s.cross(e1);
-        let (lo, hi) = (v0.min(v1).min(v2), v0.max(v1).max(v2));
+        // The box and scale with SSE min/max (a triangle is set up per tile leaf, often): the
+        // same values as the scalar test's for finite corners, which a scene guarantees.
+        let a = |v: Vec3| Vec3A::from(v);
+        let (lo, hi) = (a(v0).min(a(v1)).min(a(v2)), a(v0).max(a(v1)).max(a(v2)));
+        let scale = a(origin).abs().max(lo.abs()).max(hi.abs()).max_element();
+        let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
+        let reach = GATE_TOLERANCE * scale;
         let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
             origin,
@@ -188,16 +206,20 @@ impl TriFromOrigin {
             s: splat(s),
             q: splat(q),
             tq: Vec4::splat(e2.dot(q)),
-            reach: Vec4::splat(GATE_TOLERANCE * gate_scale(origin, lo, hi)),
+            reach,
+            beyond: if dlow > 0.0 {
+                reach / dlow * (1.0 + 1e-4)
+            } else {
+                f32::INFINITY
+            },
         }
     }
 
     /// [`super::intersect_triangle`] of the four rays `origin + t·d[·][l]` (directions per axis
-    /// and lane), each with `tmin <= t <= tmax[l]`. `dlow` is a lower bound of every lane's
-    /// `|d|∞` (0 when unknown): the gate's pre-test then needs no per-lane norm (a smaller
-    /// bound only lets more lanes reach the gate, which decides; see [`may_reach`]).
+    /// and lane), each with `tmin <= t <= tmax[l]` and `|d|∞` at least the `dlow` given to
+    /// [`Self::new`].
     #[inline(always)]
-    pub fn intersect4(&self, d: [Vec4; 3], tmin: f32, tmax: Vec4, dlow: f32) -> Hit4 {
+    pub fn intersect4(&self, d: [Vec4; 3], tmin: f32, tmax: Vec4) -> Hit4 {
         let p = cross(d, self.e2);
         let det = dot(self.e1, p);
         let inv_det = Vec4::ONE / det;
@@ -205,17 +227,14 @@ impl TriFromOrigin {
         let v = dot(d, self.q) * inv_det;
         let t = self.tq * inv_det;
         let mut h = accept(det, u, v, t);
-        if h.mask == 0 {
-            return h;
-        }
-        h.mask &= may_reach(t, tmin, tmax, Vec4::splat(dlow), self.reach).bitmask();
+        let b = self.beyond;
+        h.mask &= (t.cmple(tmax + Vec4::splat(b)) & t.cmpge(Vec4::splat(tmin - b))).bitmask();
         let mut m = h.mask;
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
             let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            let (reach, dmax) = (self.reach[l], dir.abs().max_element());
-            let gated = box_gate(self.origin, dir, self.lo, self.hi, h.t[l], reach, dmax);
+            let gated = box_gate(self.origin, dir, self.lo, self.hi, h.t[l], self.reach);
             gate_lane(&mut h, l, gated, tmin, tmax[l]);
         }
         h
@@ -309,7 +328,6 @@ mod tests {
                 _ => base + Vec3::new(r(1.0), r(1.0), r(1.0)),
             };
             let o = Vec3::new(r(3.0), r(3.0), r(3.0));
-            let tri = TriFromOrigin::new(o, a, b, c);
             let dirs: [Vec3; 4] = std::array::from_fn(|l| {
                 let target = match (n + l) % 4 {
                     0 => b,
@@ -326,12 +344,14 @@ mod tests {
                 d
             });
             let tmin = if n % 3 == 0 { r(0.5).abs() } else { 0.0 };
-            let tmax: [f32; 4] = std::array::from_fn(|l| {
-                if (n + l) % 3 == 0 {
-                    1.0 + r(0.5)
-                } else {
-                    f32::INFINITY
-                }
+            let tmax: [f32; 4] = std::array::from_fn(|l| match (n + l) % 3 {
+                0 => 1.0 + r(0.5),
+                // One float below the lane's own hit: the range test's edge.
+                1 => intersect_triangle(o, dirs[l], a, b, c, tmin, f32::INFINITY)
+                    .map_or(f32::INFINITY, |h| {
+                        f32::from_bits(h.t.to_bits().saturating_sub(1))
+                    }),
+                _ => f32::INFINITY,
             });
             let d4 = [0, 1, 2].map(|k| Vec4::from_array(dirs.map(|d| d[k])));
             // The pre-test's bound: exact, or none.
@@ -342,7 +362,8 @@ mod tests {
             } else {
                 0.0
             };
-            let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax), dlow);
+            let tri = TriFromOrigin::new(o, a, b, c, dlow);
+            let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax));
             for l in 0..4 {
                 let s = intersect_triangle(o, dirs[l], a, b, c, tmin, tmax[l]);
                 same_lane(s, &h, l, n, &mut checked);

@@ -68,7 +68,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let m = tile_mask(tile % tw, tile / tw, rect) & !task.cones[tile].done;
                 if m != 0 {
                     let tri = tri.get_or_insert_with(|| {
-                        TriFromOrigin::new(task.apex, tris.v0[t], tris.v1[t], tris.v2[t])
+                        TriFromOrigin::new(task.apex, tris.v0[t], tris.v1[t], tris.v2[t], task.dlow)
                     });
                     tests += task.tile_pairs(tile, m, t as u32, tri);
                 }
@@ -155,7 +155,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         while m != 0 {
             let (bits, lanes) = pop4(&mut m);
             let (d, cut) = self.tile_lanes(tile, bits);
-            let h = tri.intersect4(d, self.tmin0, cut, self.dlow);
+            let h = tri.intersect4(d, self.tmin0, cut);
             let mut hit = h.mask & ((1 << lanes) - 1);
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
