@@ -1,13 +1,11 @@
-//! Output and scratch arrays backed by transparent huge pages, as the library backs DACRT's
-//! buffers (`raysift::mem`, private to the library; the same 20 lines here rather than a public
-//! library API for one caller).
+//! Output and scratch arrays backed by transparent huge pages, through the library's
+//! [`raysift::mem::advise_huge`] (as it backs DACRT's buffers).
 //!
 //! A 1M-ray query writes about 30 MB of fresh output arrays; on 4 KiB pages the first touches cost
 //! a page fault per 4 KiB (about 20 ms on the dragon benchmark, a tenth of DACRT's trace), on
 //! 2 MiB pages a few.
 
-/// The huge page size (x86-64 and most aarch64 kernels): only whole, aligned ones are advised.
-const HUGE: usize = 2 << 20;
+use raysift::mem::advise_huge;
 
 /// `n` zeros (a zeroed allocation: fresh memory is not written), its aligned 2 MiB pages advised
 /// huge before anything touches them.
@@ -36,28 +34,3 @@ pub trait IsZero {}
 impl IsZero for f32 {}
 impl IsZero for u32 {}
 impl IsZero for bool {}
-
-/// Asks the kernel to back `v`'s whole allocation with huge pages (best effort: errors are
-/// ignored, the buffer keeps its ordinary pages).
-fn advise_huge<T>(v: &mut Vec<T>) {
-    #[cfg(target_os = "linux")]
-    {
-        let bytes = v.capacity() * std::mem::size_of::<T>();
-        let start = v.as_mut_ptr() as usize;
-        // The huge-page-aligned part of the allocation; advice outside it would cover a
-        // neighbour's memory.
-        let lo = start.next_multiple_of(HUGE);
-        let hi = (start + bytes) / HUGE * HUGE;
-        if hi > lo {
-            // SAFETY: [lo, hi) lies inside `v`'s allocation, which `v` owns and keeps alive for
-            // the call. MADV_HUGEPAGE only changes how the kernel backs the range; it never
-            // changes its contents or whether it is mapped, so no Rust reference can observe it.
-            // Exercised by every query of the test suite (tests/test_api.py, test_errors.py).
-            unsafe {
-                libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = v;
-}

@@ -33,7 +33,7 @@
 pub mod accel;
 pub mod error;
 pub mod geom;
-mod mem;
+pub mod mem;
 pub mod output;
 pub mod rays;
 pub mod render;

@@ -22,8 +22,8 @@ pub(crate) fn reserve_exact_huge<T>(v: &mut Vec<T>, n: usize, huge: bool) {
 }
 
 /// Asks the kernel to back `v`'s whole allocation with huge pages (best effort: errors are ignored,
-/// the buffer simply keeps its ordinary pages).
-fn advise_huge<T>(v: &mut Vec<T>) {
+/// the buffer simply keeps its ordinary pages). Public for the Python package's output arrays.
+pub fn advise_huge<T>(v: &mut Vec<T>) {
     #[cfg(target_os = "linux")]
     {
         let bytes = v.capacity() * std::mem::size_of::<T>();

@@ -371,4 +371,65 @@ mod tests {
         }
         assert!(checked.0 > 20_000 && checked.1 > 20_000, "{checked:?}");
     }
+    /// Rays from one origin at a triangle in an axis plane (a Sponza wall), each lane's `tmax`
+    /// set to its own hit's distance where the gate moved `t` down onto the plane: the
+    /// Möller–Trumbore `t` then lies beyond `tmax`, and the widened range test must still let the
+    /// lane reach the gate (with or without a `dlow` bound). The case must contain such lanes.
+    #[test]
+    fn lanes_the_gate_moves_below_tmax_are_kept() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(3);
+        let (a, b, c) = (
+            Vec3::new(16.218_04, 0.093313, 7.171_489),
+            Vec3::new(16.218_04, 3.892_572, 3.638_583),
+            Vec3::new(16.218_04, 3.678_313, 3.495_419),
+        );
+        let raw_t = |o: Vec3, d: Vec3| {
+            let (e1, e2) = (b - a, c - a);
+            e2.dot((o - a).cross(e1)) * (1.0 / e1.dot(d.cross(e2)))
+        };
+        let (mut moved, mut checked) = (0, (0, 0));
+        for n in 0..20_000 {
+            let o = Vec3::new(
+                rng.gen_range(-17.0..10.0),
+                rng.gen_range(-1.0..15.0),
+                rng.gen_range(-7.8..7.8),
+            );
+            let dirs: [Vec3; 4] = std::array::from_fn(|_| {
+                let (r1, r2): (f32, f32) = (rng.gen(), rng.gen());
+                let (r1, r2) = if r1 + r2 > 1.0 {
+                    (1.0 - r1, 1.0 - r2)
+                } else {
+                    (r1, r2)
+                };
+                a + (b - a) * r1 + (c - a) * r2 - o
+            });
+            let tmax: [f32; 4] = std::array::from_fn(|l| {
+                match intersect_triangle(o, dirs[l], a, b, c, 0.0, f32::INFINITY) {
+                    Some(h) if raw_t(o, dirs[l]) > h.t => {
+                        moved += 1;
+                        h.t
+                    }
+                    _ => f32::INFINITY,
+                }
+            });
+            let dlow = if n % 2 == 0 {
+                dirs.iter()
+                    .map(|d| d.abs().max_element())
+                    .fold(f32::INFINITY, f32::min)
+            } else {
+                0.0
+            };
+            let tri = TriFromOrigin::new(o, a, b, c, dlow);
+            let d4 = [0, 1, 2].map(|k| Vec4::from_array(dirs.map(|d| d[k])));
+            let h = tri.intersect4(d4, 0.0, Vec4::from_array(tmax));
+            for l in 0..4 {
+                let s = intersect_triangle(o, dirs[l], a, b, c, 0.0, tmax[l]);
+                same_lane(s, &h, l, n, &mut checked);
+            }
+        }
+        assert!(
+            moved > 100,
+            "the case must contain lanes moved below their tmax: {moved}"
+        );
+    }
 }
