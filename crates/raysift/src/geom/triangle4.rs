@@ -158,10 +158,10 @@ fn may_reach(t: L, tmin: f32, tmax: L, dmax: L, reach: L) -> glam::BVec4A {
 /// scalar test on each (the per-ray rest is the scalar order, lane-wise).
 #[derive(Clone, Copy, Debug)]
 pub struct TriFromOrigin {
-    origin: Vec3,
-    /// The triangle's bounding box.
-    lo: Vec3,
-    hi: Vec3,
+    /// The triangle's bounding box less the origin, `lo − origin` and `hi − origin` per axis
+    /// (the slab test's first subtraction, the same numbers for every ray from the origin).
+    lo_off: [Vec4; 3],
+    hi_off: [Vec4; 3],
     e1: [Vec4; 3],
     e2: [Vec4; 3],
     s: [Vec4; 3],
@@ -198,9 +198,8 @@ impl TriFromOrigin {
         let reach = GATE_TOLERANCE * scale;
         let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
-            origin,
-            lo,
-            hi,
+            lo_off: splat(lo - origin),
+            hi_off: splat(hi - origin),
             e1: splat(e1),
             e2: splat(e2),
             s: splat(s),
@@ -229,15 +228,48 @@ impl TriFromOrigin {
         let mut h = accept(det, u, v, t);
         let b = self.beyond;
         h.mask &= (t.cmple(tmax + Vec4::splat(b)) & t.cmpge(Vec4::splat(tmin - b))).bitmask();
-        let mut m = h.mask;
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let dir = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            let gated = box_gate(self.origin, dir, self.lo, self.hi, h.t[l], self.reach);
-            gate_lane(&mut h, l, gated, tmin, tmax[l]);
+        if h.mask != 0 {
+            let (gated, ok) = self.box_gate4(d, t, tmin, tmax);
+            h.mask &= ok;
+            h.t = gated.to_array();
         }
         h
+    }
+
+    /// [`box_gate`] and the range test on four lanes at once: the same f32 operations in the
+    /// same order as the scalar [`SlabRay::new`](super::SlabRay::new) +
+    /// [`SlabRay::interval`](super::SlabRay::interval) (near plane chosen by the sign bit of the
+    /// direction, which is that of its reciprocal, `−0.0` included; a NaN slab distance never
+    /// moves the interval) and the gate's move, with the first subtraction precomputed. One
+    /// vector pass instead of a scalar gate per candidate lane: the gate's cost in DACRT's tile
+    /// leaves (BENCHMARKS.md, "The exact contract"). Returns the gated distances and the mask of
+    /// lanes that pass (callers keep only lanes that passed the barycentric tests too).
+    #[inline(always)]
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn box_gate4(&self, d: [Vec4; 3], t: Vec4, tmin: f32, tmax: Vec4) -> (Vec4, u32) {
+        let mut enter = Vec4::NEG_INFINITY;
+        let mut exit = Vec4::INFINITY;
+        let slack = Vec4::splat(super::BOX_EXIT_SLACK);
+        for k in 0..3 {
+            let inv = Vec4::ONE / d[k];
+            let neg = Vec4::ONE.copysign(d[k]).cmplt(Vec4::ZERO);
+            let near = Vec4::select(neg, self.hi_off[k], self.lo_off[k]) * inv;
+            let far = Vec4::select(neg, self.lo_off[k], self.hi_off[k]) * inv * slack;
+            enter = Vec4::select(near.cmpgt(enter), near, enter);
+            exit = Vec4::select(far.cmplt(exit), far, exit);
+        }
+        let enter = enter - enter.abs() * Vec4::splat(super::slab::BOX_ENTRY_SLACK);
+        let nonempty = enter.cmple(exit);
+        let inside = t.cmpge(enter) & t.cmple(exit);
+        let moved = Vec4::select(t.cmplt(enter), enter, exit);
+        let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
+        let near_enough = ((t - moved).abs() * dmax).cmple(Vec4::splat(self.reach));
+        let gated = Vec4::select(inside, t, moved);
+        let ok = nonempty
+            & (inside | near_enough)
+            & gated.cmpge(Vec4::splat(tmin))
+            & gated.cmple(tmax);
+        (gated, ok.bitmask())
     }
 }
 
@@ -327,7 +359,11 @@ mod tests {
                 1 => a + (b - a) * 0.5,
                 _ => base + Vec3::new(r(1.0), r(1.0), r(1.0)),
             };
-            let o = Vec3::new(r(3.0), r(3.0), r(3.0));
+            let mut o = Vec3::new(r(3.0), r(3.0), r(3.0));
+            if n % 13 == 0 {
+                // On the box's y = min plane, with some lanes' d.y = 0: the slab's 0 · ∞ = NaN.
+                o.y = a.y.min(b.y).min(c.y);
+            }
             let dirs: [Vec3; 4] = std::array::from_fn(|l| {
                 let target = match (n + l) % 4 {
                     0 => b,
@@ -337,6 +373,9 @@ mod tests {
                 let mut d = target - o;
                 if (n + l) % 5 == 0 {
                     d.y = 0.0;
+                }
+                if (n + l) % 11 == 0 {
+                    d.z = -0.0;
                 }
                 if (n + l) % 97 == 0 {
                     d.x = f32::NAN;
