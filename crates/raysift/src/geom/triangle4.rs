@@ -250,9 +250,9 @@ impl TriFromOrigin {
         let mut enter = Vec4::NEG_INFINITY;
         let mut exit = Vec4::INFINITY;
         let slack = Vec4::splat(super::BOX_EXIT_SLACK);
-        for k in 0..3 {
-            let inv = Vec4::ONE / d[k];
-            let neg = Vec4::ONE.copysign(d[k]).cmplt(Vec4::ZERO);
+        for (k, &dk) in d.iter().enumerate() {
+            let inv = Vec4::ONE / dk;
+            let neg = Vec4::ONE.copysign(dk).cmplt(Vec4::ZERO);
             let near = Vec4::select(neg, self.hi_off[k], self.lo_off[k]) * inv;
             let far = Vec4::select(neg, self.lo_off[k], self.hi_off[k]) * inv * slack;
             enter = Vec4::select(near.cmpgt(enter), near, enter);
