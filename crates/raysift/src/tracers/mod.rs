@@ -8,9 +8,11 @@
 //! | `naive` | brute force, the ground truth | [`naive`] |
 //! | `bvh` | binned-SAH BVH (Wald 2007), pbrt-style traversal: the static baseline | [`bvh`] |
 //! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
+//! | `dacrt5d` | divide-and-conquer over 5D ray hierarchies (Hoedt; Arvo & Kirk 1987) | [`dacrt5d`] |
 
 pub mod bvh;
 pub mod dacrt;
+pub mod dacrt5d;
 pub mod naive;
 
 use crate::error::{Error, Result};
@@ -159,6 +161,17 @@ pub static REGISTRY: &[Entry] = &[
         presets: dacrt::PRESETS,
         built_counters: dacrt::COUNTERS.0,
         work_counters: dacrt::COUNTERS.1,
+    },
+    Entry {
+        name: "dacrt5d",
+        paper: "Hoedt, DACRT over 5D ray hierarchies (after Arvo & Kirk 1987, ray classification)",
+        summary: "divide-and-conquer over ray space: 5D ray bundles split in place, triangles culled by each bundle's frustum or cone",
+        create: |opts| Ok(Box::new(dacrt5d::Dacrt5d::new(config_from_opts("dacrt5d", opts)?))),
+        defaults: defaults_of::<dacrt5d::Config>,
+        option_docs: dacrt5d::OPTION_DOCS,
+        presets: dacrt5d::PRESETS,
+        built_counters: dacrt5d::COUNTERS.0,
+        work_counters: dacrt5d::COUNTERS.1,
     },
 ];
 

@@ -147,10 +147,10 @@ mod cone_rec;
 mod config;
 mod order;
 mod packets;
-mod partition;
+pub(crate) mod partition;
 mod ray_rec;
 mod run;
-mod scratch;
+pub(crate) mod scratch;
 mod screen;
 mod split;
 #[cfg(test)]

@@ -120,7 +120,7 @@ pub(super) fn prefetch<T>(v: &[T], i: usize) {
 /// it) and returns the block's new end `k + (e − a)`: after filtering `v[..a]` into `v[..k]`,
 /// this appends the entries known to be kept without a test.
 #[inline]
-pub(super) fn gather_block<T>(v: &mut [T], k: usize, a: usize, e: usize) -> usize {
+pub(crate) fn gather_block<T>(v: &mut [T], k: usize, a: usize, e: usize) -> usize {
     let (len, gap) = (e - a, a - k);
     if len <= gap {
         for i in 0..len {

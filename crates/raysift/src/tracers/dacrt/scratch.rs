@@ -43,7 +43,7 @@ impl Scratch {
 }
 
 /// `v`, emptied, with room for `n` (allocating exactly `n` when it has less room).
-pub(super) fn reuse<T>(mut v: Vec<T>, n: usize, huge: bool) -> Vec<T> {
+pub(crate) fn reuse<T>(mut v: Vec<T>, n: usize, huge: bool) -> Vec<T> {
     reserve_exact_huge(&mut v, n, huge);
     v
 }

@@ -1,0 +1,124 @@
+//! The options (`--opt key=value`): the post's choices (frustum culling, the cost stop with its
+//! author's 16/16), Arvo–Kirk's cone and Mora's fixed limits as alternatives, and ours (the
+//! direction weight of the ray split, spatial splits).
+
+use crate::tracers::{OptionDoc, Preset};
+use serde::{Deserialize, Serialize};
+
+/// How geometry is culled against a node's ray bound.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Cull {
+    /// The post's open frustum: 4 planes from the u/v bounds through the origin box, plus the
+    /// near plane.
+    #[default]
+    Frustum,
+    /// Arvo–Kirk's bounding cone (apex at the origin box's centre, swept by its bounding ball).
+    Cone,
+}
+
+/// When a node becomes a naive leaf.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Stop {
+    /// The post's cost model: leaf when `R·G < c_r·R + c_g·G`.
+    #[default]
+    Cost,
+    /// Mora's fixed limits: leaf when `R < r_limit` or `G < p_limit`.
+    Fixed,
+}
+
+/// Options (`key=value` on the command line).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// `frustum` (the post) or `cone` (Arvo–Kirk). Default `frustum`.
+    pub cull: Cull,
+    /// `cost` (the post) or `fixed` (Mora). Default `cost`.
+    pub stop: Stop,
+    /// The cost stop's ray constant `C_r` (the author's code: 16). Default 16.
+    pub c_r: f32,
+    /// The cost stop's geometry constant `C_g` (the author's code: 16). Default 16.
+    pub c_g: f32,
+    /// The fixed stop's ray limit (Mora: 20). Default 20.
+    pub r_limit: usize,
+    /// The fixed stop's triangle limit (Mora: 16). Default 16.
+    pub p_limit: usize,
+    /// Weight of a direction range (`u`, `v`, slopes in [-1, 1]) against a position range
+    /// divided by the scene's largest extent, when choosing the split dimension: the spread of
+    /// a ray bundle across the scene is about `Δx + Δu·L`, so 1 weighs both by their footprint
+    /// at the scene's size (the author's code splits u/v when their range exceeds a tenth of the
+    /// spatial range, in world units: scale-dependent). Default 1.
+    pub dir_weight: f32,
+    /// Hybrid (ours): a node whose surviving triangles outnumber its rays `spatial_ratio` times
+    /// is split in space instead, along the bundle's major axis, near half first; rays whose hit
+    /// is final leave before the far half (exact early termination). Default true.
+    pub spatial: bool,
+    /// See `spatial`. Default 2.
+    pub spatial_ratio: f32,
+    /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
+    pub max_depth: u32,
+    /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
+    /// of rayon threads. Default 0.
+    pub tasks: usize,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            cull: Cull::Frustum,
+            stop: Stop::Cost,
+            c_r: 16.0,
+            c_g: 16.0,
+            r_limit: 20,
+            p_limit: 16,
+            dir_weight: 1.0,
+            spatial: true,
+            spatial_ratio: 2.0,
+            max_depth: 64,
+            tasks: 0,
+        }
+    }
+}
+
+/// One line per option, for `raysift tracers --verbose` (details on [`Config`]'s fields).
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc { key: "cull", doc: "geometry cull against a node's rays: frustum (the post's 5 planes) or cone (Arvo-Kirk)" },
+    OptionDoc { key: "stop", doc: "leaf rule: cost (R*G < c_r*R + c_g*G, the post) or fixed (r_limit, p_limit: Mora)" },
+    OptionDoc { key: "c_r", doc: "cost stop: ray constant (author's code: 16)" },
+    OptionDoc { key: "c_g", doc: "cost stop: geometry constant (author's code: 16)" },
+    OptionDoc { key: "r_limit", doc: "fixed stop: leaf when fewer rays than this (Mora: 20)" },
+    OptionDoc { key: "p_limit", doc: "fixed stop: leaf when fewer triangles than this (Mora: 16)" },
+    OptionDoc { key: "dir_weight", doc: "weight of a u/v range against a position range over the scene's extent, for the split dimension" },
+    OptionDoc { key: "spatial", doc: "hybrid: spatial splits along the major axis (front to back, early termination) where triangles outnumber rays" },
+    OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
+    OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
+    OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
+];
+
+/// Configurations the conformance suite checks besides the defaults: both culls, both stops,
+/// deep recursions (tiny limits), ray splits only, spatial splits everywhere, positions only.
+pub const PRESETS: &[Preset] = &[
+    Preset { name: "frustum", opts: &[("cull", "frustum"), ("tasks", "1")] },
+    Preset { name: "cone", opts: &[("cull", "cone"), ("tasks", "1")] },
+    Preset {
+        name: "frustum fixed tiny",
+        opts: &[("cull", "frustum"), ("stop", "fixed"), ("r_limit", "2"), ("p_limit", "2"), ("tasks", "3")],
+    },
+    Preset {
+        name: "cone fixed tiny",
+        opts: &[("cull", "cone"), ("stop", "fixed"), ("r_limit", "2"), ("p_limit", "2"), ("tasks", "3")],
+    },
+    Preset {
+        name: "frustum cost tiny, ray splits only",
+        opts: &[("c_r", "1"), ("c_g", "1"), ("spatial", "false"), ("tasks", "2")],
+    },
+    Preset {
+        name: "cone cost tiny, spatial everywhere",
+        opts: &[("cull", "cone"), ("c_r", "1"), ("c_g", "1"), ("spatial_ratio", "0"), ("tasks", "2")],
+    },
+    Preset {
+        name: "frustum, spatial everywhere, positions only, shallow",
+        opts: &[("spatial_ratio", "0"), ("dir_weight", "0"), ("stop", "fixed"), ("r_limit", "1"), ("p_limit", "1"), ("max_depth", "12")],
+    },
+];

@@ -1,0 +1,263 @@
+//! `dacrt5d`: divide-and-conquer ray tracing over 5D ray hierarchies (Asger Hoedt's blog post
+//! "DACRT over 5D ray hierarchies", `../shared/papers/hoedt-dacrt-5d-ray-hierarchies.md`, after
+//! Arvo & Kirk 1987's ray classification). Instead of dividing space as [`super::dacrt`] does,
+//! each call divides the *rays*: by origin and direction, and culls the triangles against each
+//! ray group's bound. No structure is stored but each triangle's box.
+//!
+//! | file | holds | post / paper |
+//! |---|---|---|
+//! | `mod.rs` | [`Dacrt5d`], `impl Tracer`, counters, memory | |
+//! | `config.rs` | [`Config`]: cull, stop, constants, presets | the post's choices, ours |
+//! | `bound.rs` | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a node's 5D box, the open frustum and the cone, their exact culls | Arvo–Kirk; the post's frustum |
+//! | `rec.rs` | the recursion: cull, cost stop or fixed limits, ray-space split, spatial split (front to back, early termination), naive leaves | the post's `DACRT`, termination criterion; ours |
+//! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the bundles' recursions, results | |
+//! | `tests.rs` | unit tests (culls against the shared test's rounding, classification) | |
+//!
+//! What implements which part of the post:
+//! - **5D classification** (`bound.rs`, `classify`): major axis = largest `|d|` (ties by strict
+//!   `>`: `|dx| = |dy|` goes to y), `u, v` = the minor components over `|d_major|`, in
+//!   [-1, 1]; each task sorts its rays into the six bundles in place (counting sort, no extra
+//!   buffer). Rays no bound can hold (negative or NaN `tmin`, zero or non-finite direction or
+//!   origin: the loaders refuse these, the library does not) form a seventh group traced
+//!   naively against every triangle, so they cost time, never an answer.
+//! - **Ray-space subdivision** (`rec.rs`, `Task::ray_split`): the node's 5D box is rebuilt from
+//!   its rays (one pass); the split dimension is the widest of the five, positions divided by
+//!   the scene's largest extent and slopes weighted by `Config::dir_weight` (default 1: a ray
+//!   bundle's footprint across the scene is about `Δx + Δu·L`; the author's "u/v when above a
+//!   tenth of the spatial range" mixes units); the rays are partitioned in place at the middle
+//!   of that range (children are disjoint sub-ranges: nothing is allocated per node). Identical
+//!   rays (zero range) or a split that leaves a side empty make a leaf.
+//! - **Geometry culling** (`bound.rs`, `Task::cull`): each node filters its parent's triangle
+//!   prefix in place (children are prefixes, as in `dacrt`) against its own bound:
+//!   `cull=frustum` (the post's open frustum: the 4 planes of the u/v bounds through the origin
+//!   box's corners with analytic normals, plus the near plane; no NaN normals for a flat u or v
+//!   range, and the near plane for every bundle, unlike the author's code) or `cull=cone`
+//!   (Arvo–Kirk's cone, apex at the origin box's centre swept by its bounding ball, as the
+//!   author's `SphereCone`). Both test the triangle's bounding box, conservatively against the
+//!   shared test's rounding: the argument is in `bound.rs`; the test that would catch a cull
+//!   that is not conservative is `tests.rs`' `culls_keep_every_grazing_hit`.
+//! - **Stop** (`Config::stop`): the post's cost rule, leaf when `R·G < C_r·R + C_g·G` (16/16,
+//!   the author's values), or Mora's fixed limits (`R < 20` or `G < 16`); a depth cap (64).
+//! - **Leaves**: naive, every ray against every triangle (groups of four through the shared
+//!   four-wide test when at most 64 triangles, else the scalar test).
+//! - **Order and early termination** (ours; the post has none), with the **hybrid** (ours): a
+//!   node whose surviving triangles outnumber its rays (`G > spatial_ratio·R`, default 2:
+//!   coherent rays, many triangles, where ray splits cannot shrink `G`) is split in *space*
+//!   along its bundle's major axis at the mean of the triangles' near ends: the near triangles
+//!   (near end at or before the plane) are traced first with all the rays, then the rays whose
+//!   best hit (or `tmax`) lies before the plane by the rounding bound leave, exactly: every far
+//!   triangle starts beyond the plane, and a hit on it would lie beyond it too (`rec.rs`,
+//!   `Task::spatial_split`). Occlusion is any-hit: an occluded ray leaves there too.
+//! - **Threads** (`run.rs`): rayon tasks over disjoint shares of the rays (as `dacrt`), each with
+//!   its own lists, classifying its share into the bundles and recursing on each.
+//! - **Shared code**: the block move of the far triangles to the prefix and the buffer reuse are
+//!   `dacrt`'s (`partition::gather_block`, `scratch::reuse`).
+//!
+//! Correctness is bit-exact with `naive`: every pair goes through the shared
+//! [`intersect_triangle`](crate::geom::intersect_triangle) (or its bit-equal four-wide form)
+//! and [`closer`](crate::tracer::closer); every cull and termination is conservative.
+//!
+//! **Memory** (deterministic, independent of the scene's shape): prepare holds `24·T` (each
+//! triangle's box); a call with `K` tasks allocates `4·T` per task (triangle ids) and `24·R`
+//! (one 24-byte record per ray: 5D point and id), kept by the tracer for the next call (a
+//! second call of the same size allocates nothing). So `a = 24 + 4K` bytes per triangle,
+//! `b = 24` per ray; `tests/dacrt5d.rs` checks it with a counting allocator.
+
+mod bound;
+mod config;
+mod rec;
+mod run;
+#[cfg(test)]
+mod tests;
+
+pub use config::{Config, Cull, Stop, OPTION_DOCS, PRESETS};
+
+use crate::error::Result;
+use crate::mem::reserve_exact_huge;
+use crate::rays::{HitBatch, RayBatch};
+use crate::scene::{Scene, Stamp};
+use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer};
+use bound::Rec;
+use std::sync::Mutex;
+
+/// Task slots kept between calls.
+const MAX_POOLED: usize = 64;
+
+/// One task's buffers between calls.
+#[derive(Default)]
+struct Scratch {
+    tri_idx: Vec<u32>,
+    recs: Vec<Rec>,
+}
+
+/// The tracer: the options and each triangle's box.
+pub struct Dacrt5d {
+    cfg: Config,
+    stamp: Stamp,
+    /// `[lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]` per triangle; degenerate or non-finite triangles
+    /// (never hit) get `lo = +inf, hi = -inf` and never enter a root list.
+    boxes: Vec<[f32; 6]>,
+    /// The largest coordinate magnitude and extent of the scene's live triangles.
+    scale: f32,
+    extent: f32,
+    pool: Vec<Mutex<Scratch>>,
+}
+
+impl Dacrt5d {
+    /// A tracer with options.
+    pub fn new(cfg: Config) -> Self {
+        Self {
+            cfg,
+            stamp: Stamp::default(),
+            boxes: Vec::new(),
+            scale: 0.0,
+            extent: 0.0,
+            pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
+        }
+    }
+
+    /// The options.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    fn tasks(&self) -> usize {
+        if self.cfg.tasks == 0 {
+            rayon::current_num_threads().max(1)
+        } else {
+            self.cfg.tasks
+        }
+    }
+}
+
+crate::counters! {
+    /// What a `dacrt5d` trace counts.
+    pub struct Counts {
+        /// Nodes entered (culled or not).
+        nodes,
+        /// Naive leaves.
+        leaves,
+        /// Ray-space splits.
+        ray_splits,
+        /// Spatial splits (the hybrid, front to back along the major axis).
+        spatial_splits,
+        /// Nodes that culled their parent's triangles against their own bound.
+        culls,
+        /// Triangle/frustum tests.
+        frustum_tests,
+        /// Triangle/cone tests.
+        cone_tests,
+        /// Ray/triangle tests.
+        ray_tri,
+        /// Rays that left early at a spatial split (hit or `tmax` before the far half).
+        terminated,
+        /// Triangles surviving the culls at depth 0 (the bundles' roots).
+        surv_d0,
+        /// ... at depth 1.
+        surv_d1,
+        /// ... at depth 2.
+        surv_d2,
+        /// ... at depth 3.
+        surv_d3,
+        /// ... at depths 4 to 7.
+        surv_d4_7,
+        /// ... at depths 8 to 15.
+        surv_d8_15,
+        /// ... at depths 16 to 31.
+        surv_d16_31,
+        /// ... at depth 32 and beyond.
+        surv_d32,
+    }
+}
+
+crate::counters! {
+    /// What a `dacrt5d` prepare makes.
+    pub struct Built {
+        /// Triangle boxes written.
+        triangles,
+    }
+}
+
+/// Counter docs, for the registry: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (
+    <Built as crate::tracer::CounterSet>::DOCS,
+    <Counts as crate::tracer::CounterSet>::DOCS,
+);
+
+impl Tracer for Dacrt5d {
+    fn name(&self) -> &'static str {
+        "dacrt5d"
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        let tris = scene.triangles();
+        let n = tris.len();
+        if self.boxes.capacity() < n {
+            reserve_exact_huge(&mut self.boxes, n, true);
+        }
+        self.boxes.clear();
+        let (mut scale, mut lo_all, mut hi_all) = (0.0f32, [f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for t in 0..n {
+            let [a, b, c] = tris.get(t);
+            let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+            let live = !(a == b && b == c) && lo.is_finite() && hi.is_finite();
+            self.boxes.push(if live {
+                scale = scale.max(lo.abs().max_element()).max(hi.abs().max_element());
+                for k in 0..3 {
+                    lo_all[k] = lo_all[k].min(lo[k]);
+                    hi_all[k] = hi_all[k].max(hi[k]);
+                }
+                [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]
+            } else {
+                [f32::INFINITY, f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY]
+            });
+        }
+        self.scale = scale;
+        self.extent = (0..3).map(|k| hi_all[k] - lo_all[k]).fold(0.0f32, f32::max);
+        self.stamp = scene.stamp();
+        Ok(Stats::prepared(&Built { triangles: n as u64 }, self.bytes()))
+    }
+
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let chunk = rays.len().div_ceil(self.tasks()).max(1);
+        let tally: Tally<Counts> = par_ray_chunks(rays, hits, cost, chunk, |range, out, cost| {
+            self.run_task::<false>(scene, rays, range, chunk, out.t, out.prim, out.u, out.v, &mut [], cost)
+        });
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let chunk = rays.len().div_ceil(self.tasks()).max(1);
+        let tally: Tally<Counts> = par_occlusion_chunks(rays, occluded, cost, chunk, |range, out, cost| {
+            self.run_task::<true>(scene, rays, range, chunk, &mut [], &mut [], &mut [], &mut [], out, cost)
+        });
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn bytes(&self) -> usize {
+        let pool: usize = self
+            .pool
+            .iter()
+            .map(|m| {
+                m.lock().map_or(0, |g| {
+                    g.tri_idx.capacity() * 4 + g.recs.capacity() * std::mem::size_of::<Rec>()
+                })
+            })
+            .sum();
+        self.boxes.capacity() * 24 + pool
+    }
+}

@@ -1,0 +1,104 @@
+//! One task: its share of the rays classified into the bundles (a counting sort into the
+//! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
+
+use super::bound::{classify, Rec, GROUPS, UNBOUNDED};
+use super::rec::Task;
+use super::{Counts, Dacrt5d, Scratch};
+use crate::rays::{RayBatch, MISS};
+use crate::scene::Scene;
+use crate::tracer::{CostMut, Tally};
+use crate::tracers::dacrt::scratch::reuse;
+use std::ops::Range;
+
+impl Dacrt5d {
+    /// Runs one task over rays `range` (outputs already reset to misses); `chunk` is the share
+    /// size (the pool slot is `range.start / chunk`).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run_task<const ANY: bool>(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        range: Range<usize>,
+        chunk: usize,
+        t: &mut [f32],
+        prim: &mut [u32],
+        u: &mut [f32],
+        v: &mut [f32],
+        occ: &mut [bool],
+        cost: Option<CostMut<'_>>,
+    ) -> Tally<Counts> {
+        let (ntri, len, base) = (scene.len(), range.len(), range.start);
+        let slot = self.pool.get(base / chunk);
+        let sc = slot
+            .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
+            .unwrap_or_default();
+        let mut task = Task::<ANY> {
+            cfg: &self.cfg,
+            tris: scene.triangles(),
+            boxes: &self.boxes,
+            rays,
+            base,
+            t,
+            prim,
+            u,
+            v,
+            occ,
+            tri_idx: reuse(sc.tri_idx, ntri, true),
+            recs: reuse(sc.recs, len, true),
+            scale: self.scale,
+            inv_extent: if self.extent > 0.0 { 1.0 / self.extent } else { 0.0 },
+            st: Counts::default(),
+            cost,
+        };
+        if !ANY {
+            // The z-buffer starts at `tmax`.
+            for k in 0..len {
+                task.t[k] = rays.tmax[base + k];
+            }
+        }
+        // Counting sort into the groups: count, then place (classifying twice costs less than a
+        // second buffer).
+        let mut start = [0usize; GROUPS + 1];
+        for i in range.clone() {
+            start[classify(rays.origin(i), rays.dir(i), rays.tmin[i]).0 + 1] += 1;
+        }
+        for g in 0..GROUPS {
+            start[g + 1] += start[g];
+        }
+        let mut next = start;
+        task.recs.resize(len, Rec::default());
+        for i in range.clone() {
+            let (g, p) = classify(rays.origin(i), rays.dir(i), rays.tmin[i]);
+            task.recs[next[g]] = Rec { p, id: (i - base) as u32 };
+            next[g] += 1;
+        }
+        let boxes = &self.boxes;
+        task.tri_idx.extend(
+            boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[3]).map(|(t, _)| t as u32),
+        );
+        let nlive = task.tri_idx.len();
+        if nlive > 0 {
+            for g in 0..UNBOUNDED {
+                if start[g] < start[g + 1] {
+                    task.node(g, start[g], start[g + 1], nlive, 0, None);
+                }
+            }
+            if start[UNBOUNDED] < len {
+                task.leaf(start[UNBOUNDED], len, nlive);
+            }
+        }
+        if !ANY {
+            for k in 0..len {
+                if task.prim[k] == MISS {
+                    task.t[k] = f32::INFINITY;
+                }
+            }
+        }
+        let peak = (4 * ntri + std::mem::size_of::<Rec>() * len) as u64;
+        let st = task.st;
+        if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
+            *g = Scratch { tri_idx: task.tri_idx, recs: task.recs };
+        }
+        Tally { counts: st, peak_bytes: peak }
+    }
+}
