@@ -10,6 +10,7 @@
 //! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
 
 pub mod bvh;
+pub mod cone;
 pub mod dacrt;
 pub mod naive;
 
