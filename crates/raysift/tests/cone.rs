@@ -240,7 +240,7 @@ fn memory() {
     let bvh = t.bvh();
     assert_eq!(t.bytes(), bvh.pairs.capacity() * 64 + bvh.ids.capacity() * 4);
     let per_tri = t.bytes() as f64 / scene.len() as f64;
-    assert!(per_tri < 40.0, "{per_tri} bytes per triangle");
+    assert!(per_tri < 48.0, "{per_tri} bytes per triangle");
     let cones = camera_cones(&scene, 10, 0.5);
     assert_eq!(cones.bytes(), 100 * 40);
     let mut out = ConeHits::default();

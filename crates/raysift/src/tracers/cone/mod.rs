@@ -149,17 +149,23 @@ impl ConeBatch {
                 c.t_near, c.t_far
             ));
         }
+        self.push_row(Cone { axis, ..c });
+        Ok(())
+    }
+
+    /// Appends a cone of a valid batch as it is (no second normalisation of its axis, which
+    /// could move it by an ulp and change its answer).
+    fn push_row(&mut self, c: Cone) {
         self.ox.push(c.apex.x);
         self.oy.push(c.apex.y);
         self.oz.push(c.apex.z);
-        self.dx.push(axis.x);
-        self.dy.push(axis.y);
-        self.dz.push(axis.z);
+        self.dx.push(c.axis.x);
+        self.dy.push(c.axis.y);
+        self.dz.push(c.axis.z);
         self.alpha.push(c.alpha);
         self.t_near.push(c.t_near);
         self.near_id.push(c.near_id);
         self.t_far.push(c.t_far);
-        Ok(())
     }
 
     /// Cone `i`.
@@ -279,7 +285,7 @@ impl ConeHits {
                 Some(id) => (ts[n - 1], id),
                 None => (ts[n - 1].next_up(), 0),
             };
-            next.push(c).expect("a valid cone continues as a valid cone");
+            next.push_row(c);
             which.push(i);
         }
         (next, which)
