@@ -104,7 +104,9 @@ pub fn run(a: &ConesArgs) -> Result<()> {
     if a.threads == Some(0) {
         bail!("--threads must be at least 1");
     }
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()?;
     pool.install(|| run_in_pool(a))
 }
 
@@ -139,7 +141,10 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
     let q = if a.count {
         Query::count()
     } else {
-        Query { n: a.n, count_only: false }
+        Query {
+            n: a.n,
+            count_only: false,
+        }
     };
     let mut tracer = cone::create(structure, traversal, box_test);
     let t0 = Instant::now();

@@ -8,7 +8,8 @@ use raysift::rays::Camera;
 use raysift::scene::{procedural, Mesh, Scene};
 use raysift::testkit::shared_scenes;
 use raysift::tracers::cone::{
-    bvh::ConeBvh, create, BoxTest, Cone, ConeBatch, ConeHits, ConeTracer, Query, Structure, Traversal,
+    bvh::ConeBvh, create, BoxTest, Cone, ConeBatch, ConeHits, ConeTracer, Query, Structure,
+    Traversal,
 };
 
 fn variants() -> Vec<Box<dyn ConeTracer>> {
@@ -19,8 +20,15 @@ fn variants() -> Vec<Box<dyn ConeTracer>> {
         }
     }
     // Small leaves: deeper trees, more culling decisions.
-    let small = raysift::accel::bvh::BuildConfig { max_leaf: 1, ..Default::default() };
-    v.push(Box::new(ConeBvh::with_build(Traversal::Sorted, BoxTest::Improved, small)));
+    let small = raysift::accel::bvh::BuildConfig {
+        max_leaf: 1,
+        ..Default::default()
+    };
+    v.push(Box::new(ConeBvh::with_build(
+        Traversal::Sorted,
+        BoxTest::Improved,
+        small,
+    )));
     v
 }
 
@@ -55,12 +63,20 @@ fn check(scene: &Scene, cones: &ConeBatch) -> usize {
     let mut oracle = create(Structure::Oracle, Traversal::Stack, BoxTest::Basic);
     let mut vs = variants();
     let mut total = 0;
-    for q in [Query::nearest(1), Query::nearest(4), Query::nearest(16), Query::all()] {
+    for q in [
+        Query::nearest(1),
+        Query::nearest(4),
+        Query::nearest(16),
+        Query::all(),
+    ] {
         let want = trace(oracle.as_mut(), scene, cones, q);
         for i in 0..want.len() {
             let (p, t) = want.cone(i);
             for k in 1..p.len() {
-                assert!((t[k - 1], p[k - 1]) < (t[k], p[k]), "oracle cone {i} not sorted/unique");
+                assert!(
+                    (t[k - 1], p[k - 1]) < (t[k], p[k]),
+                    "oracle cone {i} not sorted/unique"
+                );
             }
             if let Some(n) = q.n {
                 assert!(p.len() <= n);
@@ -87,9 +103,17 @@ fn check(scene: &Scene, cones: &ConeBatch) -> usize {
             let (p2, t2) = next.cone(k);
             let (pa, ta) = all.cone(i);
             let m = (8).min(pa.len());
-            let joined: Vec<(u32, u32)> =
-                p1.iter().chain(p2).zip(t1.iter().chain(t2)).map(|(&p, t)| (p, t.to_bits())).collect();
-            let want: Vec<(u32, u32)> = pa[..m].iter().zip(&ta[..m]).map(|(&p, t)| (p, t.to_bits())).collect();
+            let joined: Vec<(u32, u32)> = p1
+                .iter()
+                .chain(p2)
+                .zip(t1.iter().chain(t2))
+                .map(|(&p, t)| (p, t.to_bits()))
+                .collect();
+            let want: Vec<(u32, u32)> = pa[..m]
+                .iter()
+                .zip(&ta[..m])
+                .map(|(&p, t)| (p, t.to_bits()))
+                .collect();
             assert_eq!(joined, want, "{}: continuation of cone {i}", v.name());
         }
     }
@@ -135,7 +159,12 @@ fn grid_scene(k: usize, dup: usize) -> Scene {
         for j in 0..k {
             let b = pos.len() as u32;
             let (x, y) = (i as f32, j as f32);
-            pos.extend([Vec3::new(x, y, 0.0), Vec3::new(x + 1.0, y, 0.0), Vec3::new(x, y + 1.0, 0.0), Vec3::new(x + 1.0, y + 1.0, 0.0)]);
+            pos.extend([
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 1.0, y, 0.0),
+                Vec3::new(x, y + 1.0, 0.0),
+                Vec3::new(x + 1.0, y + 1.0, 0.0),
+            ]);
             for _ in 0..dup {
                 idx.push([b, b + 1, b + 2]);
                 idx.push([b + 1, b + 3, b + 2]);
@@ -151,13 +180,13 @@ fn hard_cases_coplanar_ties_axis_aligned_apex_on_surface() {
     let mut b = ConeBatch::default();
     let c = Vec3::new(4.0, 4.0, 0.0);
     for (apex, axis, a) in [
-        (c + Vec3::Z * 5.0, -Vec3::Z, 0.3),                       // straight down onto shared vertices
-        (c + Vec3::Z * 5.0, -Vec3::Z, 0.0007),                    // a pixel-sized cone
-        (c, Vec3::Z, 0.5),                                         // apex on the surface, looking away
-        (c, Vec3::new(1.0, 0.0, 0.2), 0.4),                        // apex on the surface, grazing
-        (Vec3::new(-3.0, 4.0, 0.0), Vec3::X, 0.2),                 // in the plane, along it
+        (c + Vec3::Z * 5.0, -Vec3::Z, 0.3), // straight down onto shared vertices
+        (c + Vec3::Z * 5.0, -Vec3::Z, 0.0007), // a pixel-sized cone
+        (c, Vec3::Z, 0.5),                  // apex on the surface, looking away
+        (c, Vec3::new(1.0, 0.0, 0.2), 0.4), // apex on the surface, grazing
+        (Vec3::new(-3.0, 4.0, 0.0), Vec3::X, 0.2), // in the plane, along it
         (Vec3::new(-3.0, 4.5, 1.0), Vec3::new(1.0, 0.0, -0.3), 1.3), // wide
-        (c + Vec3::Z * 2.0, Vec3::new(0.3, 0.2, -1.0), 1.5),       // nearly a half-space
+        (c + Vec3::Z * 2.0, Vec3::new(0.3, 0.2, -1.0), 1.5), // nearly a half-space
     ] {
         b.push(Cone::new(apex, axis, a)).unwrap();
     }
@@ -170,7 +199,8 @@ fn sphere_from_inside_and_outside() {
     let mut b = camera_cones(&scene, 8, 1.5);
     for i in 0..20 {
         let d = Vec3::new((i as f32).sin(), (i as f32 * 0.7).cos(), 0.3);
-        b.push(Cone::new(Vec3::ZERO, d, 0.05 + i as f32 * 0.05)).unwrap();
+        b.push(Cone::new(Vec3::ZERO, d, 0.05 + i as f32 * 0.05))
+            .unwrap();
     }
     assert!(check(&scene, &b) > 100);
 }
@@ -202,10 +232,21 @@ fn early_out_and_counting_mode() {
     let count = s.trace(&scene, &cones, &Query::count(), &mut out).unwrap();
     assert!(out.prim.is_empty() && out.len() == cones.len());
     assert_eq!(count.work.get("cone_tri"), 0);
-    let one = s.trace(&scene, &cones, &Query::nearest(1), &mut out).unwrap();
-    let sorted = o.trace(&scene, &cones, &Query::nearest(1), &mut out).unwrap();
-    let (nc, n1, ns) = (count.work.get("nodes"), one.work.get("nodes"), sorted.work.get("nodes"));
-    assert!(n1 * 2 < nc, "n = 1 entered {n1} nodes, the full traversal {nc}");
+    let one = s
+        .trace(&scene, &cones, &Query::nearest(1), &mut out)
+        .unwrap();
+    let sorted = o
+        .trace(&scene, &cones, &Query::nearest(1), &mut out)
+        .unwrap();
+    let (nc, n1, ns) = (
+        count.work.get("nodes"),
+        one.work.get("nodes"),
+        sorted.work.get("nodes"),
+    );
+    assert!(
+        n1 * 2 < nc,
+        "n = 1 entered {n1} nodes, the full traversal {nc}"
+    );
     assert!(ns <= n1, "sorted {ns} > stack {n1}");
     assert!(count.work.get("tri_encounters") > one.work.get("tri_encounters"));
 }
@@ -220,8 +261,17 @@ fn stale_scene_and_bad_cones_are_errors() {
     let cones = camera_cones(&scene, 2, 1.0);
     assert!(t.trace(&scene, &cones, &Query::all(), &mut out).is_err());
     let mut b = ConeBatch::default();
-    for (axis, a) in [(Vec3::ZERO, 0.1), (Vec3::Z, 0.0), (Vec3::Z, 1.6), (Vec3::Z, f32::NAN), (Vec3::new(f32::NAN, 0.0, 1.0), 0.1)] {
-        let e = b.push(Cone::new(Vec3::ZERO, axis, a)).unwrap_err().to_string();
+    for (axis, a) in [
+        (Vec3::ZERO, 0.1),
+        (Vec3::Z, 0.0),
+        (Vec3::Z, 1.6),
+        (Vec3::Z, f32::NAN),
+        (Vec3::new(f32::NAN, 0.0, 1.0), 0.1),
+    ] {
+        let e = b
+            .push(Cone::new(Vec3::ZERO, axis, a))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("cone 0:"), "{e}");
     }
     let mut c = Cone::new(Vec3::ZERO, Vec3::Z, 0.1);
@@ -238,12 +288,16 @@ fn memory() {
     let mut t = ConeBvh::new(Traversal::Stack, BoxTest::Improved);
     t.prepare(&scene).unwrap();
     let bvh = t.bvh();
-    assert_eq!(t.bytes(), bvh.pairs.capacity() * 64 + bvh.ids.capacity() * 4);
+    assert_eq!(
+        t.bytes(),
+        bvh.pairs.capacity() * 64 + bvh.ids.capacity() * 4
+    );
     let per_tri = t.bytes() as f64 / scene.len() as f64;
     assert!(per_tri < 48.0, "{per_tri} bytes per triangle");
     let cones = camera_cones(&scene, 10, 0.5);
     assert_eq!(cones.bytes(), 100 * 40);
     let mut out = ConeHits::default();
-    t.trace(&scene, &cones, &Query::nearest(4), &mut out).unwrap();
+    t.trace(&scene, &cones, &Query::nearest(4), &mut out)
+        .unwrap();
     assert!(out.bytes() <= out.prim.capacity() * 8 + out.start.capacity() * 8);
 }

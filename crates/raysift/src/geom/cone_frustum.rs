@@ -191,7 +191,10 @@ impl ConeFrustum {
         // Lanes 0, 2 are box a's lo/hi planes, 1, 3 box b's.
         let tmin = [lo4.x.max(lo4.z), lo4.y.max(lo4.w)];
         let tmax = [hi4.x.min(hi4.z), hi4.y.min(hi4.w)];
-        [Self::finish(tmin[0], tmax[0]), Self::finish(tmin[1], tmax[1])]
+        [
+            Self::finish(tmin[0], tmax[0]),
+            Self::finish(tmin[1], tmax[1]),
+        ]
     }
 
     /// The improved test on one box (the pair's second slot empty).

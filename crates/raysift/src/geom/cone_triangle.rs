@@ -134,9 +134,8 @@ impl ConeF64 {
         }
         let n = (p[1] - p[0]).cross(p[2] - p[0]);
         if n != DVec3::ZERO && best > 0.0 {
-            let inside = |q: DVec3| {
-                (0..3).all(|i| (p[(i + 1) % 3] - p[i]).cross(q - p[i]).dot(n) >= 0.0)
-            };
+            let inside =
+                |q: DVec3| (0..3).all(|i| (p[(i + 1) % 3] - p[i]).cross(q - p[i]).dot(n) >= 0.0);
             let off = n.dot(p[0] - self.apex);
             // 3. The apex in the triangle.
             if off == 0.0 && inside(self.apex) {

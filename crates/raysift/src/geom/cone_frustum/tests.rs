@@ -6,7 +6,11 @@ use rand::{Rng, SeedableRng};
 
 fn unit(rng: &mut impl Rng) -> Vec3 {
     loop {
-        let v = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
+        let v = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        );
         if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
             return v.normalize();
         }
@@ -32,13 +36,25 @@ fn basic_and_improved_agree_bit_for_bit() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(2);
     let mut kinds = [0usize; 2];
     for _ in 0..20000 {
-        let apex = Vec3::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0));
+        let apex = Vec3::new(
+            rng.gen_range(-2.0..2.0),
+            rng.gen_range(-2.0..2.0),
+            rng.gen_range(-2.0..2.0),
+        );
         let alpha = [0.0007, 0.02, 0.3, std::f32::consts::FRAC_PI_4, 1.5][rng.gen_range(0..5)];
         let f = ConeFrustum::new(apex, axis(&mut rng), alpha);
         let mut pair = BoxPair::EMPTY;
         for slot in 0..2 {
-            let c = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
-            let mut e = Vec3::new(rng.gen_range(0.0..1.0), rng.gen_range(0.0..1.0), rng.gen_range(0.0..1.0));
+            let c = Vec3::new(
+                rng.gen_range(-3.0..3.0),
+                rng.gen_range(-3.0..3.0),
+                rng.gen_range(-3.0..3.0),
+            );
+            let mut e = Vec3::new(
+                rng.gen_range(0.0..1.0),
+                rng.gen_range(0.0..1.0),
+                rng.gen_range(0.0..1.0),
+            );
             // Flat boxes, and boxes with a face through the apex.
             if rng.gen_bool(0.2) {
                 e[rng.gen_range(0..3)] = 0.0;
@@ -46,7 +62,11 @@ fn basic_and_improved_agree_bit_for_bit() {
             let (mut lo, mut hi) = (c - e, c + e);
             if rng.gen_bool(0.2) {
                 let k = rng.gen_range(0..3);
-                if rng.gen_bool(0.5) { lo[k] = apex[k] } else { hi[k] = apex[k] }
+                if rng.gen_bool(0.5) {
+                    lo[k] = apex[k]
+                } else {
+                    hi[k] = apex[k]
+                }
                 lo = lo.min(hi);
             }
             pair.set(slot, lo, hi.max(lo));
@@ -76,7 +96,11 @@ fn conservative_against_the_exact_test() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(9);
     let (mut hits, mut culled) = (0, 0);
     for _ in 0..30000 {
-        let apex = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
+        let apex = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        );
         let ax = axis(&mut rng);
         let alpha = (rng.gen_range(-8.0f32..0.4)).exp();
         let d = rng.gen_range(0.1f32..4.0);
@@ -94,18 +118,28 @@ fn conservative_against_the_exact_test() {
         let exact = ConeF64::new(apex, ax, alpha).triangle(tri[0], tri[1], tri[2]);
         let f = ConeFrustum::new(apex, ax, alpha);
         let b = Aabb::from_points(tri);
-        let big = b.union(Aabb::new(b.min - Vec3::splat(rng.gen_range(0.0..1.0)), b.max));
+        let big = b.union(Aabb::new(
+            b.min - Vec3::splat(rng.gen_range(0.0..1.0)),
+            b.max,
+        ));
         for bx in [b, big] {
             let got = f.interval_basic(bx.min, bx.max);
             match exact {
                 Some(t) => {
-                    let (lo, hi) = got.unwrap_or_else(|| panic!("culled a hit (t {t}): {f:?} {tri:?}"));
-                    assert!(lo <= t && t <= hi, "t {t} outside [{lo}, {hi}]: {f:?} {tri:?}");
+                    let (lo, hi) =
+                        got.unwrap_or_else(|| panic!("culled a hit (t {t}): {f:?} {tri:?}"));
+                    assert!(
+                        lo <= t && t <= hi,
+                        "t {t} outside [{lo}, {hi}]: {f:?} {tri:?}"
+                    );
                 }
                 None => culled += got.is_none() as usize,
             }
         }
         hits += exact.is_some() as usize;
     }
-    assert!(hits > 5000 && culled > 2000, "{hits} hits, {culled} culled boxes");
+    assert!(
+        hits > 5000 && culled > 2000,
+        "{hits} hits, {culled} culled boxes"
+    );
 }

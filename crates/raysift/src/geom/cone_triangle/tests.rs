@@ -67,7 +67,11 @@ fn check(apex: Vec3, axis: Vec3, alpha: f32, t: [Vec3; 3]) -> Option<f32> {
 
 fn unit(rng: &mut impl Rng) -> Vec3 {
     loop {
-        let v = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
+        let v = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        );
         if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
             return v.normalize();
         }
@@ -79,7 +83,11 @@ fn random_cones_against_sampling() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(16);
     let (mut hits, mut n) = (0, 0);
     for _ in 0..400 {
-        let apex = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
+        let apex = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        );
         let axis = unit(&mut rng);
         // Half-angles from 0.06° to 86°, log-uniform.
         let alpha = (rng.gen_range(-7.0f32..0.4)).exp();
@@ -91,13 +99,20 @@ fn random_cones_against_sampling() {
         hits += check(apex, axis, alpha, tri).is_some() as usize;
         n += 1;
     }
-    assert!(hits > n / 4 && hits < n, "{hits} of {n}: the cases must mix hits and misses");
+    assert!(
+        hits > n / 4 && hits < n,
+        "{hits} of {n}: the cases must mix hits and misses"
+    );
 }
 
 #[test]
 fn triangle_enclosing_the_axis() {
     // No vertex and no edge inside the cone: only the generator candidates find it.
-    let tri = [Vec3::new(-10.0, -10.0, 5.0), Vec3::new(10.0, -10.0, 5.0), Vec3::new(0.0, 10.0, 5.0)];
+    let tri = [
+        Vec3::new(-10.0, -10.0, 5.0),
+        Vec3::new(10.0, -10.0, 5.0),
+        Vec3::new(0.0, 10.0, 5.0),
+    ];
     let t = check(Vec3::ZERO, Vec3::Z, 0.1, tri).unwrap();
     assert!((t - 5.0).abs() < 1e-6, "{t}");
     // Tilted plane z = 5 + 0.5 x: the lowest point is on the generator leaning to −x.
@@ -110,14 +125,24 @@ fn triangle_enclosing_the_axis() {
 
 #[test]
 fn apex_in_the_triangles_plane() {
-    let tri = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, -1.0, 0.0), Vec3::new(0.0, 2.0, 0.0)];
+    let tri = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(2.0, -1.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+    ];
     // Apex inside the triangle: t = 0 whatever the axis.
-    assert_eq!(check(Vec3::new(0.1, 0.2, 0.0), unit_dir(0.3, 0.1, 1.0), 0.2, tri), Some(0.0));
+    assert_eq!(
+        check(Vec3::new(0.1, 0.2, 0.0), unit_dir(0.3, 0.1, 1.0), 0.2, tri),
+        Some(0.0)
+    );
     // Apex in the plane, outside the triangle, cone grazing into it.
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
     for _ in 0..40 {
         let apex = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), 0.0);
-        let axis = (Vec3::new(0.0, 0.0, 0.0) - apex + unit(&mut rng) * 0.5 + Vec3::Z * rng.gen_range(-0.5..0.5)).normalize();
+        let axis = (Vec3::new(0.0, 0.0, 0.0) - apex
+            + unit(&mut rng) * 0.5
+            + Vec3::Z * rng.gen_range(-0.5..0.5))
+        .normalize();
         check(apex, axis, rng.gen_range(0.05..1.2), tri);
     }
 }
@@ -133,7 +158,15 @@ fn degenerate_triangles() {
     let t = check(Vec3::ZERO, Vec3::Z, 0.05, [a, b, (a + b) * 0.5]).unwrap();
     assert!((t - 4.0).abs() < 1e-3, "{t}");
     // A segment beside the cone, and a point inside and outside.
-    assert_eq!(check(Vec3::ZERO, Vec3::Z, 0.05, [a + Vec3::X * 3.0, b + Vec3::X * 3.0, b + Vec3::X * 3.0]), None);
+    assert_eq!(
+        check(
+            Vec3::ZERO,
+            Vec3::Z,
+            0.05,
+            [a + Vec3::X * 3.0, b + Vec3::X * 3.0, b + Vec3::X * 3.0]
+        ),
+        None
+    );
     let p = Vec3::new(0.01, 0.0, 2.0);
     assert_eq!(check(Vec3::ZERO, Vec3::Z, 0.05, [p, p, p]), Some(2.0));
     assert_eq!(check(Vec3::ZERO, Vec3::Z, 0.001, [p, p, p]), None);
@@ -141,10 +174,22 @@ fn degenerate_triangles() {
 
 #[test]
 fn half_angles_near_zero_and_ninety() {
-    let tri = [Vec3::new(-1.0, -1.0, 3.0), Vec3::new(1.0, -1.0, 3.5), Vec3::new(0.0, 1.0, 3.2)];
+    let tri = [
+        Vec3::new(-1.0, -1.0, 3.0),
+        Vec3::new(1.0, -1.0, 3.5),
+        Vec3::new(0.0, 1.0, 3.2),
+    ];
     // α → 0: t tends to the axis ray's hit distance.
     let t = check(Vec3::ZERO, Vec3::Z, 1e-5, tri).unwrap();
-    let ray = crate::geom::intersect_triangle(Vec3::ZERO, Vec3::Z, tri[0], tri[1], tri[2], 0.0, f32::INFINITY);
+    let ray = crate::geom::intersect_triangle(
+        Vec3::ZERO,
+        Vec3::Z,
+        tri[0],
+        tri[1],
+        tri[2],
+        0.0,
+        f32::INFINITY,
+    );
     let rt = ray.expect("the axis hits").t;
     assert!((t - rt).abs() < 1e-3 && t <= rt + 1e-6, "{t} vs ray {rt}");
     // α → 90°: almost everything in front of the apex's plane is inside.

@@ -110,7 +110,8 @@ impl<const SORTED: bool, const IMPROVED: bool> Walk<'_, SORTED, IMPROVED> {
 
     #[inline(always)]
     fn keep(r: Option<(f32, f32)>, list: &Nearest) -> Option<f32> {
-        r.filter(|&(lo, hi)| hi >= list.t_near() && lo <= list.bound()).map(|r| r.0)
+        r.filter(|&(lo, hi)| hi >= list.t_near() && lo <= list.bound())
+            .map(|r| r.0)
     }
 }
 
@@ -181,7 +182,11 @@ impl<const SORTED: bool, const IMPROVED: bool> Walker for Walk<'_, SORTED, IMPRO
                 let [a, b] = self.bvh.children(&node);
                 match (Self::keep(r[0], list), Self::keep(r[1], list)) {
                     (Some(la), Some(lb)) => {
-                        let (near, far) = if lb < la { ((b, lb), (a, la)) } else { ((a, la), (b, lb)) };
+                        let (near, far) = if lb < la {
+                            ((b, lb), (a, la))
+                        } else {
+                            ((a, la), (b, lb))
+                        };
                         s.stack.push(far);
                         next = Some(near.0);
                     }
@@ -229,15 +234,29 @@ impl ConeTracer for ConeBvh {
         Ok(Stats::prepared(&built, self.bvh.bytes()))
     }
 
-    fn trace(&self, scene: &Scene, cones: &ConeBatch, q: &Query, out: &mut ConeHits) -> Result<Stats> {
+    fn trace(
+        &self,
+        scene: &Scene,
+        cones: &ConeBatch,
+        q: &Query,
+        out: &mut ConeHits,
+    ) -> Result<Stats> {
         self.stamp.check(scene, "cone bvh")?;
         let soup = scene.triangles();
         let bvh = &self.bvh;
         Ok(match (self.traversal, self.box_test) {
-            (Traversal::Stack, BoxTest::Basic) => walk(&Walk::<false, false> { bvh }, soup, cones, q, out),
-            (Traversal::Stack, BoxTest::Improved) => walk(&Walk::<false, true> { bvh }, soup, cones, q, out),
-            (Traversal::Sorted, BoxTest::Basic) => walk(&Walk::<true, false> { bvh }, soup, cones, q, out),
-            (Traversal::Sorted, BoxTest::Improved) => walk(&Walk::<true, true> { bvh }, soup, cones, q, out),
+            (Traversal::Stack, BoxTest::Basic) => {
+                walk(&Walk::<false, false> { bvh }, soup, cones, q, out)
+            }
+            (Traversal::Stack, BoxTest::Improved) => {
+                walk(&Walk::<false, true> { bvh }, soup, cones, q, out)
+            }
+            (Traversal::Sorted, BoxTest::Basic) => {
+                walk(&Walk::<true, false> { bvh }, soup, cones, q, out)
+            }
+            (Traversal::Sorted, BoxTest::Improved) => {
+                walk(&Walk::<true, true> { bvh }, soup, cones, q, out)
+            }
         })
     }
 

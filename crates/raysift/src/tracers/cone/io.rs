@@ -16,7 +16,9 @@ use std::io::Read;
 use std::path::Path;
 
 /// One record of a cone-hits file.
-#[derive(npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq)]
+#[derive(
+    npyz::Serialize, npyz::Deserialize, npyz::AutoSerialize, Clone, Copy, Debug, PartialEq,
+)]
 pub struct ConeHitRecord {
     /// Cone index (row of the cones).
     pub cone: u32,
@@ -45,7 +47,10 @@ fn cones_from<R: Read>(o: Opened<R>, name: &str) -> Result<ConeBatch> {
         return Err(Error::parse(
             name,
             "header",
-            format!("dtype is {}, expected float32 ('<f4')", o.npy.dtype().descr()),
+            format!(
+                "dtype is {}, expected float32 ('<f4')",
+                o.npy.dtype().descr()
+            ),
         ));
     }
     if shape.len() != 2 || shape[1] != 8 {
@@ -56,7 +61,11 @@ fn cones_from<R: Read>(o: Opened<R>, name: &str) -> Result<ConeBatch> {
         ));
     }
     if o.npy.order() != npyz::Order::C {
-        return Err(Error::parse(name, "header", "Fortran-ordered array; save it in C order"));
+        return Err(Error::parse(
+            name,
+            "header",
+            "Fortran-ordered array; save it in C order",
+        ));
     }
     let n = shape[0];
     check_sizes(&o, name, n, 32, "cones", ConeBatch::BYTES_PER_CONE as u64)?;
@@ -70,12 +79,28 @@ fn cones_from<R: Read>(o: Opened<R>, name: &str) -> Result<ConeBatch> {
         for x in row.iter_mut() {
             *x = match values.next() {
                 Some(Ok(v)) => v,
-                Some(Err(e)) => return Err(Error::parse(name, format!("row {i}"), format!("read error: {e}"))),
-                None => return Err(Error::parse(name, format!("row {i}"), "unexpected end of data")),
+                Some(Err(e)) => {
+                    return Err(Error::parse(
+                        name,
+                        format!("row {i}"),
+                        format!("read error: {e}"),
+                    ))
+                }
+                None => {
+                    return Err(Error::parse(
+                        name,
+                        format!("row {i}"),
+                        "unexpected end of data",
+                    ))
+                }
             };
         }
         if row.iter().any(|x| !x.is_finite()) {
-            return Err(Error::parse(name, format!("row {i}"), format!("non-finite value in {row:?}")));
+            return Err(Error::parse(
+                name,
+                format!("row {i}"),
+                format!("non-finite value in {row:?}"),
+            ));
         }
         if !(row[6] > 0.0 && row[6] < 90.0) {
             return Err(Error::parse(
@@ -86,9 +111,14 @@ fn cones_from<R: Read>(o: Opened<R>, name: &str) -> Result<ConeBatch> {
         }
         let c = Cone {
             t_near: row[7],
-            ..Cone::new(Vec3::new(row[0], row[1], row[2]), Vec3::new(row[3], row[4], row[5]), row[6].to_radians())
+            ..Cone::new(
+                Vec3::new(row[0], row[1], row[2]),
+                Vec3::new(row[3], row[4], row[5]),
+                row[6].to_radians(),
+            )
         };
-        b.push(c).map_err(|e| Error::parse(name, format!("row {i}"), e.to_string()))?;
+        b.push(c)
+            .map_err(|e| Error::parse(name, format!("row {i}"), e.to_string()))?;
     }
     Ok(b)
 }
@@ -97,7 +127,10 @@ fn cones_from<R: Read>(o: Opened<R>, name: &str) -> Result<ConeBatch> {
 pub fn write_cone_hits(path: impl AsRef<Path>, hits: &ConeHits) -> Result<()> {
     let mut cone_of = Vec::with_capacity(hits.prim.len());
     for i in 0..hits.len() {
-        cone_of.extend(std::iter::repeat_n(i as u32, hits.start[i + 1] - hits.start[i]));
+        cone_of.extend(std::iter::repeat_n(
+            i as u32,
+            hits.start[i + 1] - hits.start[i],
+        ));
     }
     write_records(path.as_ref(), hits.prim.len(), |k| ConeHitRecord {
         cone: cone_of[k],

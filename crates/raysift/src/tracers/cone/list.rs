@@ -48,7 +48,9 @@ impl Nearest {
     #[inline(always)]
     pub fn bound(&self) -> f32 {
         match self.n {
-            Some(n) if self.items.len() == n => self.items.last().map_or(f32::NEG_INFINITY, |x| x.0),
+            Some(n) if self.items.len() == n => {
+                self.items.last().map_or(f32::NEG_INFINITY, |x| x.0)
+            }
             _ => self.t_far,
         }
     }
@@ -89,7 +91,8 @@ impl Nearest {
     /// Moves the sorted answer out (appending ids and `t`s), leaving the list empty.
     pub fn drain_into(&mut self, prim: &mut Vec<u32>, t: &mut Vec<f32>) {
         if self.n.is_none() {
-            self.items.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            self.items
+                .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             self.items.dedup();
         }
         for &(tt, id) in &self.items {
@@ -128,7 +131,15 @@ mod tests {
 
     #[test]
     fn keeps_the_n_nearest_sorted_with_ties_by_id_and_no_duplicates() {
-        let offers = [(3.0, 7), (1.0, 9), (1.0, 2), (5.0, 1), (1.0, 2), (2.0, 4), (0.5, 8)];
+        let offers = [
+            (3.0, 7),
+            (1.0, 9),
+            (1.0, 2),
+            (5.0, 1),
+            (1.0, 2),
+            (2.0, 4),
+            (0.5, 8),
+        ];
         let mut l = Nearest::new(Some(3));
         let mut all = Nearest::new(None);
         for (t, id) in offers {
@@ -136,7 +147,10 @@ mod tests {
             all.offer(t, id);
         }
         assert_eq!(drain(&mut l), vec![(8, 0.5), (2, 1.0), (9, 1.0)]);
-        assert_eq!(drain(&mut all), vec![(8, 0.5), (2, 1.0), (9, 1.0), (4, 2.0), (7, 3.0), (1, 5.0)]);
+        assert_eq!(
+            drain(&mut all),
+            vec![(8, 0.5), (2, 1.0), (9, 1.0), (4, 2.0), (7, 3.0), (1, 5.0)]
+        );
         // Continuing after (1.0, 9): t_near = 1.0, near_id = 10.
         l.reset(1.0, 10, f32::INFINITY);
         for (t, id) in offers {

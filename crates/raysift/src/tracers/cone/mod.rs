@@ -450,14 +450,23 @@ pub trait ConeTracer: Send + Sync {
     /// Build (or rebuild) for `scene`.
     fn prepare(&mut self, scene: &Scene) -> Result<Stats>;
     /// The answers for `cones` into `out`; a scene changed since `prepare` is an error.
-    fn trace(&self, scene: &Scene, cones: &ConeBatch, q: &Query, out: &mut ConeHits)
-        -> Result<Stats>;
+    fn trace(
+        &self,
+        scene: &Scene,
+        cones: &ConeBatch,
+        q: &Query,
+        out: &mut ConeHits,
+    ) -> Result<Stats>;
     /// Bytes held between calls.
     fn bytes(&self) -> usize;
 }
 
 /// A cone tracer for `structure` with `traversal` and `box_test` (ignored by the oracle).
-pub fn create(structure: Structure, traversal: Traversal, box_test: BoxTest) -> Box<dyn ConeTracer> {
+pub fn create(
+    structure: Structure,
+    traversal: Traversal,
+    box_test: BoxTest,
+) -> Box<dyn ConeTracer> {
     match structure {
         Structure::Oracle => Box::new(oracle::Oracle::default()),
         Structure::Bvh => Box::new(bvh::ConeBvh::new(traversal, box_test)),
