@@ -12,6 +12,7 @@
 
 mod animate;
 mod args;
+mod cones;
 mod export;
 mod info;
 mod pool;
@@ -53,6 +54,8 @@ enum Cmd {
     /// Adversarial scenes and rays, every tracer and preset against naive; reproductions of any
     /// disagreement are written to files.
     Soak(soak::SoakArgs),
+    /// Cone tracing: the n nearest triangles per cone (one per pixel, or from cones.npy).
+    Cones(cones::ConesArgs),
 }
 
 fn main() {
@@ -83,5 +86,6 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Export(a) => export::run(&a),
         Cmd::Tracers(a) => tracers::run(&a),
         Cmd::Soak(a) => soak::run(&a),
+        Cmd::Cones(a) => cones::run(&a),
     }
 }

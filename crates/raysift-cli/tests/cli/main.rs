@@ -96,4 +96,5 @@ fn tracer_names() -> Vec<String> {
 }
 
 mod commands;
+mod cones;
 mod errors;

@@ -6,6 +6,8 @@
 //! function on the same data (see `triangle`).
 
 pub mod aabb;
+pub mod cone_frustum;
+pub mod cone_triangle;
 pub mod conebox;
 pub mod lanes;
 pub mod projection;
@@ -16,6 +18,8 @@ pub mod triangle4;
 pub mod tribox;
 
 pub use aabb::{Aabb, PackedRay};
+pub use cone_frustum::ConeFrustum;
+pub use cone_triangle::{cone_triangle, ConeF64};
 pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
 pub use projection::{PixelProjection, RectLanes};

@@ -11,6 +11,7 @@
 //! | `dacrt5d` | divide-and-conquer over 5D ray hierarchies (Hoedt; Arvo & Kirk 1987) | [`dacrt5d`] |
 
 pub mod bvh;
+pub mod cone;
 pub mod dacrt;
 pub mod dacrt5d;
 pub mod naive;

@@ -86,12 +86,12 @@ pub const MAX_HEADER_NESTING: usize = 4;
 
 /// An opened `.npy` input: npyz's reader positioned at the data, and the number of data bytes
 /// after the header.
-struct Opened<R: Read> {
-    npy: npyz::NpyFile<std::io::Chain<std::io::Cursor<Vec<u8>>, R>>,
-    data_len: u64,
+pub(crate) struct Opened<R: Read> {
+    pub(crate) npy: npyz::NpyFile<std::io::Chain<std::io::Cursor<Vec<u8>>, R>>,
+    pub(crate) data_len: u64,
 }
 
-fn open_file(path: &Path) -> Result<(std::io::BufReader<std::fs::File>, u64)> {
+pub(crate) fn open_file(path: &Path) -> Result<(std::io::BufReader<std::fs::File>, u64)> {
     let name = path.display().to_string();
     let f = std::fs::File::open(path).map_err(|e| Error::io(&name, e))?;
     let len = f.metadata().map_err(|e| Error::io(&name, e))?.len();
@@ -103,7 +103,7 @@ fn open_file(path: &Path) -> Result<(std::io::BufReader<std::fs::File>, u64)> {
 /// 4 GiB), multiplies the shape unchecked (an overflow panic with overflow checks on) and
 /// parses the header with exponential backtracking on nested brackets. Then hands npyz the
 /// same bytes.
-fn open_npy<R: Read>(mut r: R, total_len: u64, name: &str) -> Result<Opened<R>> {
+pub(crate) fn open_npy<R: Read>(mut r: R, total_len: u64, name: &str) -> Result<Opened<R>> {
     let err = |msg: String| Error::parse(name, "header", msg);
     let mut pre = vec![0u8; 8];
     r.read_exact(&mut pre)
@@ -261,7 +261,7 @@ fn int_literal(tok: &[u8]) -> Option<Option<u64>> {
 /// Checks that the data after the header is exactly `count` items of `item` bytes (what the
 /// header's shape declares), and that `mem_each` bytes per item fit in memory, before anything
 /// is read or reserved.
-fn check_sizes<R: Read>(
+pub(crate) fn check_sizes<R: Read>(
     o: &Opened<R>,
     name: &str,
     count: u64,
@@ -301,7 +301,7 @@ fn check_sizes<R: Read>(
     )
 }
 
-fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
+pub(crate) fn is_plain(dtype: &npyz::DType, kind: char, size: u64) -> bool {
     match dtype {
         npyz::DType::Plain(ts) => {
             let s = ts.to_string();
@@ -511,7 +511,7 @@ pub fn write_hits(
 }
 
 /// Writes `n` records `record(0..n)` as a 1-d structured array.
-fn write_records<T: npyz::AutoSerialize>(
+pub(crate) fn write_records<T: npyz::AutoSerialize>(
     path: &Path,
     n: usize,
     record: impl Fn(usize) -> T,

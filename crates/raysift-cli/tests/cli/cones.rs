@@ -1,0 +1,174 @@
+//! `raysift cones`: camera cones and cones from a file give the oracle's answer through the
+//! files; bad cones files and apertures are one-line errors with exit code 2 and no output.
+
+use super::*;
+
+/// A `.npy` of `rows` float32 rows of `cols` (or another dtype descr), written by hand.
+fn npy(path: &str, descr: &str, shape: &str, data: &[u8]) {
+    let mut h = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    while (10 + h.len() + 1) % 64 != 0 {
+        h.push(' ');
+    }
+    h.push('\n');
+    let mut b = b"\x93NUMPY\x01\x00".to_vec();
+    b.extend((h.len() as u16).to_le_bytes());
+    b.extend(h.as_bytes());
+    b.extend(data);
+    std::fs::write(path, b).unwrap();
+}
+
+fn f32s(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Records (cone, prim, t bits) of a hits file, read back as bytes after the header.
+fn records(path: &str) -> Vec<(u32, u32, u32)> {
+    let b = std::fs::read(path).unwrap();
+    let hl = u16::from_le_bytes([b[8], b[9]]) as usize;
+    b[10 + hl..]
+        .chunks(12)
+        .map(|c| {
+            let w = |k: usize| u32::from_le_bytes(c[k..k + 4].try_into().unwrap());
+            (w(0), w(4), w(8))
+        })
+        .collect()
+}
+
+#[test]
+fn camera_and_file_cones_equal_the_oracle() {
+    let d = tmp();
+    let (a, b) = (p(d.path(), "bvh.npy"), p(d.path(), "oracle.npy"));
+    let view = [
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--aperture",
+        "1.5",
+        "--n",
+        "4",
+    ];
+    let o = ok(&[
+        &[
+            "cones",
+            "sphere:500",
+            "--out",
+            &a,
+            "--traversal",
+            "sorted",
+            "--json",
+        ][..],
+        &view,
+    ]
+    .concat());
+    let j = json(&o);
+    assert_eq!(j["cones"], 64);
+    assert!(j["reported"].as_u64().unwrap() > 50);
+    ok(&[
+        &["cones", "sphere:500", "--out", &b, "--structure", "oracle"][..],
+        &view,
+    ]
+    .concat());
+    let (ra, rb) = (records(&a), records(&b));
+    assert_eq!(ra, rb);
+    assert!(ra.len() <= 64 * 4 && !ra.is_empty());
+    // Cones from a file: two rows, the second continuing from t_near = 1.
+    let cones = p(d.path(), "cones.npy");
+    npy(
+        &cones,
+        "<f4",
+        "(2, 8)",
+        &f32s(&[
+            0., 0., 5., 0., 0., -1., 10., 0., 0., 0., 5., 0., 0., -1., 10., 4.5,
+        ]),
+    );
+    let (c1, c2) = (p(d.path(), "c1.npy"), p(d.path(), "c2.npy"));
+    ok(&["cones", "sphere:500", "--cones", &cones, "--out", &c1]);
+    ok(&[
+        "cones",
+        "sphere:500",
+        "--cones",
+        &cones,
+        "--out",
+        &c2,
+        "--structure",
+        "oracle",
+        "--box-test",
+        "basic",
+    ]);
+    let r = records(&c1);
+    assert_eq!(r, records(&c2));
+    let near: Vec<_> = r.iter().filter(|x| x.0 == 1).collect();
+    assert!(r.iter().any(|x| x.0 == 0) && near.iter().all(|x| f32::from_bits(x.2) >= 4.5));
+    // Counting mode reports nothing but counts.
+    let j = json(&ok(&[
+        "cones",
+        "sphere:500",
+        "--aperture",
+        "0.5",
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "--count",
+        "--json",
+    ]));
+    assert_eq!(j["reported"], 0);
+    assert!(j["tri_encounters_per_cone"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_cones_are_clean_errors() {
+    let d = tmp();
+    let out = p(d.path(), "out.npy");
+    let f = p(d.path(), "c.npy");
+    let good = [0., 0., 5., 0., 0., -1., 1., 0.];
+    npy(&f, "<f8", "(1, 8)", &[0u8; 64]);
+    fails(
+        &["cones", "sphere:50", "--cones", &f, "--out", &out],
+        "expected float32",
+    );
+    npy(&f, "<f4", "(1, 7)", &f32s(&good[..7]));
+    fails(
+        &["cones", "sphere:50", "--cones", &f, "--out", &out],
+        "expected (N, 8)",
+    );
+    let mut nan = good;
+    nan[4] = f32::NAN;
+    npy(&f, "<f4", "(1, 8)", &f32s(&nan));
+    fails(
+        &["cones", "sphere:50", "--cones", &f, "--out", &out],
+        "row 0: non-finite",
+    );
+    for alpha in [0.0, 90.0, -3.0] {
+        let mut r = good;
+        r[6] = alpha;
+        npy(&f, "<f4", "(2, 8)", &f32s(&[good, r].concat()));
+        fails(
+            &["cones", "sphere:50", "--cones", &f, "--out", &out],
+            "row 1: half-angle",
+        );
+    }
+    let mut zero = good;
+    zero[3..6].copy_from_slice(&[0.0; 3]);
+    npy(&f, "<f4", "(1, 8)", &f32s(&zero));
+    fails(
+        &["cones", "sphere:50", "--cones", &f, "--out", &out],
+        "zero axis",
+    );
+    npy(&f, "<f4", "(3, 8)", &f32s(&good));
+    fails(
+        &["cones", "sphere:50", "--cones", &f, "--out", &out],
+        "truncated",
+    );
+    fails(
+        &["cones", "sphere:50", "--aperture", "95", "--out", &out],
+        "--aperture",
+    );
+    fails(
+        &["cones", "sphere:50", "--aperture", "NaN", "--out", &out],
+        "--aperture",
+    );
+    fails(&["cones", "sphere:50", "--out", &out], "--aperture");
+    assert!(!Path::new(&out).exists());
+}
