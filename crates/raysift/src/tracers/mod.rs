@@ -8,9 +8,11 @@
 //! | `naive` | brute force, the ground truth | [`naive`] |
 //! | `bvh` | binned-SAH BVH (Wald 2007), pbrt-style traversal: the static baseline | [`bvh`] |
 //! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
+//! | `kdtree` | SAH kd-tree (Wald & Havran 2006), single-ray stack walk | [`kdtree`] |
 
 pub mod bvh;
 pub mod dacrt;
+pub mod kdtree;
 pub mod naive;
 
 use crate::error::{Error, Result};
@@ -159,6 +161,17 @@ pub static REGISTRY: &[Entry] = &[
         presets: dacrt::PRESETS,
         built_counters: dacrt::COUNTERS.0,
         work_counters: dacrt::COUNTERS.1,
+    },
+    Entry {
+        name: "kdtree",
+        paper: "Wald & Havran 2006, On building fast kd-trees for ray tracing (the shafts paper's baseline)",
+        summary: "event-sorted SAH kd-tree with empty-space cutting, rebuilt each frame; single-ray stack walk",
+        create: |opts| Ok(Box::new(kdtree::KdTracer::new(config_from_opts("kdtree", opts)?)?)),
+        defaults: defaults_of::<kdtree::Config>,
+        option_docs: kdtree::OPTION_DOCS,
+        presets: kdtree::PRESETS,
+        built_counters: kdtree::COUNTERS.0,
+        work_counters: kdtree::COUNTERS.1,
     },
 ];
 
