@@ -67,8 +67,10 @@ use crate::scene::TriangleSoup;
 /// Hard depth limit (the traversal stacks are this deep).
 pub const MAX_DEPTH: usize = 64;
 
-/// Build options (the `kdtree` tracer's `Config` carries them). Defaults are the fields' values.
-#[derive(Clone, Debug, PartialEq)]
+/// Build options; also the `kdtree` tracer's `Config` (`kdtree:key=value`). Defaults are the
+/// fields' values.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct BuildConfig {
     /// SAH cost of visiting an interior node (one split-plane distance), relative to
     /// `intersection_cost`. Default 1.0.

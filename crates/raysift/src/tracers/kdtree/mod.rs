@@ -18,64 +18,19 @@
 mod traverse;
 
 pub use crate::accel::kdtree::{BuildConfig, KdTree};
-pub use traverse::{StackEntry, Counters};
+pub use traverse::{Counters, StackEntry};
 
 use crate::error::Result;
 use crate::rays::{HitBatch, RayBatch};
 use crate::scene::{Change, Scene, Stamp};
 use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tracer};
 use crate::tracers::{OptionDoc, Preset};
-use serde::{Deserialize, Serialize};
 
 /// Rays per parallel task (as `bvh`).
 const CHUNK: usize = 256;
 
-/// Options (`kdtree:key=value`). Defaults are the fields' documented values (those of
-/// [`BuildConfig`]).
-#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(default, deny_unknown_fields)]
-pub struct Config {
-    /// SAH cost of an interior node, relative to `intersection_cost` (>= 0). Default 1.0.
-    pub traversal_cost: f32,
-    /// SAH cost of a ray/triangle test (> 0). Default 1.5.
-    pub intersection_cost: f32,
-    /// Share of the intersection term saved by a split with an empty side, in [0, 1). Default 0.2.
-    pub empty_bonus: f32,
-    /// Nodes with at most this many triangles become leaves (1..=255). Default 1.
-    pub max_leaf: usize,
-    /// Deepest leaf (0..=64; 0: `8 + 1.3·log2(N)`). Default 0.
-    pub max_depth: usize,
-    /// Nodes with at least this many triangles build their children in parallel. Default 4096.
-    pub parallel_threshold: usize,
-}
-
-impl Default for Config {
-    fn default() -> Self {
-        let b = BuildConfig::default();
-        Self {
-            traversal_cost: b.traversal_cost,
-            intersection_cost: b.intersection_cost,
-            empty_bonus: b.empty_bonus,
-            max_leaf: b.max_leaf,
-            max_depth: b.max_depth,
-            parallel_threshold: b.parallel_threshold,
-        }
-    }
-}
-
-impl Config {
-    /// The builder's options.
-    pub fn build_config(&self) -> BuildConfig {
-        BuildConfig {
-            traversal_cost: self.traversal_cost,
-            intersection_cost: self.intersection_cost,
-            empty_bonus: self.empty_bonus,
-            max_leaf: self.max_leaf,
-            max_depth: self.max_depth,
-            parallel_threshold: self.parallel_threshold,
-        }
-    }
-}
+/// Options (`kdtree:key=value`): the builder's, documented on [`BuildConfig`]'s fields.
+pub type Config = BuildConfig;
 
 /// One line per option, for `raysift tracers --verbose`.
 pub const OPTION_DOCS: &[OptionDoc] = &[
@@ -118,7 +73,6 @@ pub struct KdTracer {
 impl KdTracer {
     /// A tracer with `cfg` (checked) and no scene yet.
     pub fn new(cfg: Config) -> Result<Self> {
-        let cfg = cfg.build_config();
         cfg.check("tracer kdtree")?;
         Ok(Self {
             cfg,
