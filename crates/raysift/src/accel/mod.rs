@@ -5,8 +5,9 @@
 //! | structure | used by | module |
 //! |---|---|---|
 //! | binned-SAH BVH, with refit | `bvh` (and cone tracing's BVH walk, next) | [`bvh`] |
+//! | SAH kd-tree (event-sorted build) | `kdtree` (and the shafts and cone tracing, next) | [`kdtree`] |
 //!
-//! Next: the SAH kd-tree (relevant-triangle shafts and cone tracing) and the bounding-sphere
-//! hierarchy (RTRPS).
+//! Next: the bounding-sphere hierarchy (RTRPS).
 
 pub mod bvh;
+pub mod kdtree;

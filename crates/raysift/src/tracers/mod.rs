@@ -9,11 +9,13 @@
 //! | `bvh` | binned-SAH BVH (Wald 2007), pbrt-style traversal: the static baseline | [`bvh`] |
 //! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
 //! | `dacrt5d` | divide-and-conquer over 5D ray hierarchies (Hoedt; Arvo & Kirk 1987) | [`dacrt5d`] |
+//! | `kdtree` | SAH kd-tree (Wald & Havran 2006), single-ray stack walk | [`kdtree`] |
 
 pub mod bvh;
 pub mod cone;
 pub mod dacrt;
 pub mod dacrt5d;
+pub mod kdtree;
 pub mod naive;
 
 use crate::error::{Error, Result};
@@ -173,6 +175,17 @@ pub static REGISTRY: &[Entry] = &[
         presets: dacrt5d::PRESETS,
         built_counters: dacrt5d::COUNTERS.0,
         work_counters: dacrt5d::COUNTERS.1,
+    },
+    Entry {
+        name: "kdtree",
+        paper: "Wald & Havran 2006, On building fast kd-trees for ray tracing (the shafts paper's baseline)",
+        summary: "event-sorted SAH kd-tree with empty-space cutting, rebuilt each frame; single-ray stack walk",
+        create: |opts| Ok(Box::new(kdtree::KdTracer::new(config_from_opts("kdtree", opts)?)?)),
+        defaults: defaults_of::<kdtree::Config>,
+        option_docs: kdtree::OPTION_DOCS,
+        presets: kdtree::PRESETS,
+        built_counters: kdtree::COUNTERS.0,
+        work_counters: kdtree::COUNTERS.1,
     },
 ];
 

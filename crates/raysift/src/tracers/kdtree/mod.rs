@@ -1,0 +1,171 @@
+//! `kdtree`: the SAH kd-tree of the relevant-triangle shafts paper's baseline (and the cone
+//! tracing paper's pbrt-v3 kd-tree), traversed one ray at a time.
+//!
+//! **Build**: the shared [`crate::accel::kdtree`] (event-sorted O(N log N) SAH build of Wald &
+//! Havran 2006, box split clipping, empty-space bonus, threaded; its module doc proves the walk
+//! exact). Rebuilt whenever the scene changes.
+//!
+//! **Traversal** (`traverse.rs`): pbrt-v3's front-to-back stack walk with 12-byte stack entries;
+//! the split distance is widened to [`KdTree::split_window`] so that every gated hit is found
+//! (triangles in split planes, axis-parallel rays in a plane, ties to the smaller id included).
+//! There is no mailbox: a triangle referenced by several leaves on a ray's path is tested once
+//! per leaf (the `ray_tri` counter includes the repeats).
+//!
+//! **Memory** ([`KdTracer::bytes`]): 8 bytes per node and 4 per triangle reference; the
+//! triangles are read from the scene's soup by id. Measured per scene in BENCHMARKS.md
+//! (§ kd-tree); `tests/kdtree.rs` checks the formula and a bound.
+
+mod traverse;
+
+pub use crate::accel::kdtree::{BuildConfig, KdTree};
+pub use traverse::{Counters, StackEntry};
+
+use crate::error::Result;
+use crate::rays::{HitBatch, RayBatch};
+use crate::scene::{Change, Scene, Stamp};
+use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tracer};
+use crate::tracers::{OptionDoc, Preset};
+
+/// Rays per parallel task (as `bvh`).
+const CHUNK: usize = 256;
+
+/// Options (`kdtree:key=value`): the builder's, documented on [`BuildConfig`]'s fields.
+pub type Config = BuildConfig;
+
+/// One line per option, for `raysift tracers --verbose`.
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc { key: "traversal_cost", doc: "SAH cost of an interior node, relative to a triangle test" },
+    OptionDoc { key: "intersection_cost", doc: "SAH cost of a ray/triangle test" },
+    OptionDoc { key: "empty_bonus", doc: "share of the intersection cost saved when a side is empty, in [0, 1)" },
+    OptionDoc { key: "max_leaf", doc: "nodes with at most this many triangles become leaves (1..=255)" },
+    OptionDoc { key: "max_depth", doc: "deepest leaf (0..=64; 0: 8 + 1.3 log2 N)" },
+    OptionDoc { key: "parallel_threshold", doc: "nodes with at least this many triangles build in parallel" },
+];
+
+/// Configurations the conformance suite checks besides the defaults.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "leaves of 4, no empty bonus",
+        opts: &[("max_leaf", "4"), ("empty_bonus", "0")],
+    },
+    Preset {
+        name: "free traversal, deep tree, threaded from 8",
+        opts: &[("traversal_cost", "0"), ("parallel_threshold", "8")],
+    },
+    Preset {
+        name: "depth 2 (big leaves)",
+        opts: &[("max_depth", "2")],
+    },
+    Preset {
+        name: "costly traversal, pbrt-v3 bonus",
+        opts: &[("traversal_cost", "4"), ("empty_bonus", "0.5")],
+    },
+];
+
+/// The `kdtree` tracer: a [`KdTree`] rebuilt when the scene changes.
+#[derive(Default)]
+pub struct KdTracer {
+    cfg: BuildConfig,
+    tree: KdTree,
+    stamp: Stamp,
+}
+
+impl KdTracer {
+    /// A tracer with `cfg` (checked) and no scene yet.
+    pub fn new(cfg: Config) -> Result<Self> {
+        cfg.check("tracer kdtree")?;
+        Ok(Self {
+            cfg,
+            tree: KdTree::default(),
+            stamp: Stamp::default(),
+        })
+    }
+
+    /// The current tree.
+    pub fn tree(&self) -> &KdTree {
+        &self.tree
+    }
+}
+
+impl Tracer for KdTracer {
+    fn name(&self) -> &'static str {
+        "kdtree"
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        let mut built = Built::default();
+        if scene.changes_since(self.stamp) != Change::None {
+            self.stamp = Stamp::default();
+            // Drop the old tree first so peak memory is one tree, not two.
+            self.tree = KdTree::default();
+            self.tree = KdTree::build(scene.triangles(), &self.cfg)?;
+            built.builds = 1;
+        }
+        self.stamp = scene.stamp();
+        let s = self.tree.shape();
+        built.nodes = (s.interior + s.leaves) as u64;
+        built.leaves = s.leaves as u64;
+        built.empty_leaves = s.empty_leaves as u64;
+        built.refs = s.refs as u64;
+        built.depth = self.tree.depth as u64;
+        Ok(Stats::prepared(&built, self.tree.bytes()))
+    }
+
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let soup = scene.triangles();
+        let c: Counters = par_ray_chunks(rays, hits, cost, CHUNK, |range, out, cost| {
+            traverse::closest_chunk(&self.tree, soup, rays, range, out, cost)
+        });
+        Ok(Stats::traced(rays.len(), &c))
+    }
+
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let soup = scene.triangles();
+        let c: Counters = par_occlusion_chunks(rays, occluded, cost, CHUNK, |range, out, cost| {
+            traverse::occluded_chunk(&self.tree, soup, rays, range, out, cost)
+        });
+        Ok(Stats::traced(rays.len(), &c))
+    }
+
+    fn bytes(&self) -> usize {
+        self.tree.bytes()
+    }
+}
+
+crate::counters! {
+    /// What a `kdtree` prepare builds.
+    pub struct Built {
+        /// Full builds (0 when the scene had not changed).
+        builds,
+        /// Nodes (interior and leaves).
+        nodes,
+        /// Leaves.
+        leaves,
+        /// Leaves with no triangle (empty space cut off).
+        empty_leaves,
+        /// Triangle references in leaves (a triangle straddling planes counts once per leaf).
+        refs,
+        /// Deepest leaf.
+        depth,
+    }
+}
+
+/// Counter docs, for the registry: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (
+    <Built as crate::tracer::CounterSet>::DOCS,
+    <Counters as crate::tracer::CounterSet>::DOCS,
+);
