@@ -53,6 +53,15 @@ pub struct RenderArgs {
     /// repeatable; added to the scene's emissive meshes (path, distribution).
     #[arg(long, value_name = "X,Y,Z,SIZE,POWER", allow_hyphen_values = true)]
     area_light: Vec<String>,
+    /// Instant radiosity: VPLs wanted (Mora: 1000, 10000, 40000) [default: 1000].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
+    vpls: Option<u32>,
+    /// Instant radiosity: diffuse bounces of each photon (Mora: 1, 3, 5) [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    vpl_bounces: Option<u32>,
+    /// Instant radiosity: VPLs each camera hit sends shadow rays to [default: 64].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    vpl_subset: Option<u32>,
     /// Draw the tracer's per-ray cost instead of shading: nodes entered, tests, or ray/triangle
     /// tests, in false colour with a colour bar (the scale is printed too).
     #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
@@ -78,6 +87,8 @@ pub enum Integrator {
     /// Distribution ray tracing: a×a antialiasing, N×N shadow samples per light per hit as
     /// origin-grid groups, optional N_b×N_b diffuse bounce.
     Distribution,
+    /// Instant radiosity: photons from the lights leave VPLs; camera hits shadow-ray a subset.
+    InstantRadiosity,
 }
 
 /// Parses `--area-light x,y,z,size,power` (the error names the flag and the value).
@@ -126,6 +137,29 @@ fn check(a: &RenderArgs) -> Result<()> {
         area_light(l)?;
     }
     let dist = a.integrator == Integrator::Distribution;
+    let ir = a.integrator == Integrator::InstantRadiosity;
+    for (given, flag) in [
+        (a.vpls.is_some(), "--vpls"),
+        (a.vpl_bounces.is_some(), "--vpl-bounces"),
+        (a.vpl_subset.is_some(), "--vpl-subset"),
+    ] {
+        if given && !ir {
+            bail!("{flag} applies to --integrator instant-radiosity only");
+        }
+    }
+    if ir {
+        for (given, flag) in [
+            (a.heatmap.is_some(), "--heatmap"),
+            (a.shade.is_some(), "--shade"),
+            (a.light.is_some(), "--light (use --area-light)"),
+            (a.spp.is_some(), "--spp"),
+            (a.bounces.is_some(), "--bounces (use --vpl-bounces)"),
+        ] {
+            if given {
+                bail!("--integrator instant-radiosity takes no {flag}");
+            }
+        }
+    }
     for (given, flag) in [
         (a.aa.is_some(), "--aa"),
         (a.light_samples.is_some(), "--light-samples"),
@@ -253,6 +287,36 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         .map(|l| area_light(l))
         .collect::<Result<Vec<_>>>()?;
     let lights = render::light::Lights::new(&s, extra);
+    if a.integrator != Integrator::Raycast && a.integrator != Integrator::Path && lights.is_empty()
+    {
+        bail!("this integrator needs a light: the scene has no emissive material; add --area-light x,y,z,size,power");
+    }
+    if a.integrator == Integrator::InstantRadiosity {
+        let d = render::radiosity::IrConfig::default();
+        let cfg = render::radiosity::IrConfig {
+            vpls: a.vpls.unwrap_or(d.vpls),
+            bounces: a.vpl_bounces.unwrap_or(d.bounces),
+            subset: a.vpl_subset.unwrap_or(d.subset),
+            seed: a.seed.unwrap_or(d.seed),
+            ..d
+        };
+        let (rad, nv, phases) =
+            render::radiosity::instant_radiosity(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
+        pb.finish_and_clear();
+        render::to_image(&rad, w, h).save_png(&a.out)?;
+        return report_phases(
+            a,
+            &s,
+            tracer.as_ref(),
+            &prep,
+            t0,
+            &phases,
+            serde_json::json!({
+                "integrator": "instant-radiosity", "vpls": nv, "vpl_bounces": cfg.bounces,
+                "vpl_subset": cfg.subset, "lights": lights.lights.len(),
+            }),
+        );
+    }
     if a.integrator == Integrator::Distribution {
         let d = render::distribution::DistConfig::default();
         let cfg = render::distribution::DistConfig {
@@ -261,51 +325,22 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             bounce_side: a.bounce_samples.unwrap_or(d.bounce_side),
             seed: a.seed.unwrap_or(d.seed),
         };
-        if lights.is_empty() {
-            bail!("--integrator distribution needs a light: the scene has no emissive material; add --area-light x,y,z,size,power");
-        }
         let (rad, phases) =
             render::distribution::distribution(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
         pb.finish_and_clear();
         render::to_image(&rad, w, h).save_png(&a.out)?;
-        let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let passes: Vec<PassReport> = phases
-            .iter()
-            .filter(|p| p.rays > 0)
-            .map(|p| PassReport::of(p.name, &p.stats))
-            .collect();
-        let rays: u64 = phases.iter().map(|p| p.rays).sum();
-        let trace_ms: f64 = phases.iter().map(|p| p.stats.trace_ms).sum();
-        if a.tracer.json {
-            print_json(&serde_json::json!({
-                "scene": s.name, "triangles": s.len(), "tracer": tracer.name(),
+        return report_phases(
+            a,
+            &s,
+            tracer.as_ref(),
+            &prep,
+            t0,
+            &phases,
+            serde_json::json!({
                 "integrator": "distribution", "aa": cfg.aa, "light_samples": cfg.light_side,
                 "bounce_samples": cfg.bounce_side, "lights": lights.lights.len(),
-                "width": w, "height": h, "threads": rayon::current_num_threads(),
-                "rays": rays, "primary_hits": phases[0].hits, "prepare_ms": prep.prepare_ms,
-                "trace_ms": trace_ms, "frame_ms": frame_ms,
-                "mrays_per_s": mrays_per_s(rays, trace_ms), "passes": passes,
-                "out": a.out.display().to_string(),
-            }))?;
-        } else {
-            eprintln!(
-                "wrote {} ({rays} rays in {trace_ms:.0} ms of tracing)",
-                a.out.display()
-            );
-        }
-        if a.stats {
-            for p in phases.iter().filter(|p| p.rays > 0) {
-                eprintln!(
-                    "{}: {} rays, {} hit/blocked, {:.1} ms, {:.2} Mrays/s",
-                    p.name,
-                    p.rays,
-                    p.hits,
-                    p.stats.trace_ms,
-                    mrays_per_s(p.rays, p.stats.trace_ms)
-                );
-            }
-        }
-        return Ok(());
+            }),
+        );
     }
     if a.integrator == Integrator::Path {
         let defaults = render::path::PathConfig::default();
@@ -417,6 +452,61 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     }
     if a.stats {
         print_counters(&prep, tracer.bytes(), &passes);
+    }
+    Ok(())
+}
+
+/// The report of a phased render (distribution, instant radiosity): JSON with `extra`'s fields,
+/// or one line; `--stats` adds a line per phase with rays and Mrays/s.
+fn report_phases(
+    a: &RenderArgs,
+    s: &raysift::Scene,
+    tracer: &dyn raysift::Tracer,
+    prep: &Stats,
+    t0: Instant,
+    phases: &[raysift::render::distribution::Phase],
+    extra: serde_json::Value,
+) -> Result<()> {
+    let (w, h) = (a.view.width, a.view.height);
+    let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let passes: Vec<PassReport> = phases
+        .iter()
+        .filter(|p| p.rays > 0)
+        .map(|p| PassReport::of(p.name, &p.stats))
+        .collect();
+    let rays: u64 = phases.iter().map(|p| p.rays).sum();
+    let trace_ms: f64 = phases.iter().map(|p| p.stats.trace_ms).sum();
+    if a.tracer.json {
+        let mut j = serde_json::json!({
+            "scene": s.name, "triangles": s.len(), "tracer": tracer.name(),
+            "width": w, "height": h, "threads": rayon::current_num_threads(),
+            "rays": rays, "prepare_ms": prep.prepare_ms,
+            "trace_ms": trace_ms, "frame_ms": frame_ms,
+            "mrays_per_s": mrays_per_s(rays, trace_ms), "passes": passes,
+            "phase_hits": phases.iter().map(|p| (p.name, p.hits)).collect::<std::collections::BTreeMap<_, _>>(),
+            "out": a.out.display().to_string(),
+        });
+        if let (Some(j), serde_json::Value::Object(e)) = (j.as_object_mut(), extra) {
+            j.extend(e);
+        }
+        print_json(&j)?;
+    } else {
+        eprintln!(
+            "wrote {} ({rays} rays in {trace_ms:.0} ms of tracing)",
+            a.out.display()
+        );
+    }
+    if a.stats {
+        for p in phases.iter().filter(|p| p.rays > 0) {
+            eprintln!(
+                "{}: {} rays, {} hit/blocked, {:.1} ms, {:.2} Mrays/s",
+                p.name,
+                p.rays,
+                p.hits,
+                p.stats.trace_ms,
+                mrays_per_s(p.rays, p.stats.trace_ms)
+            );
+        }
     }
     Ok(())
 }

@@ -537,6 +537,8 @@ fn render_light_and_integrator_errors_write_nothing() {
     run(&[&dist[..], &["--spp", "4"]].concat(), "--spp");
     run(&["--aa", "2"], "--aa applies to --integrator distribution");
     run(&["--seed", "2"], "--seed");
+    run(&["--vpls", "10"], "--vpls applies to --integrator instant-radiosity");
+    run(&["--integrator", "instant-radiosity"], "needs a light");
     run(
         &["--integrator", "path", "--light-samples", "2"],
         "--light-samples",
