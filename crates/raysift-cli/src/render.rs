@@ -36,6 +36,32 @@ pub struct RenderArgs {
     /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
     #[arg(long)]
     bounces: Option<u32>,
+    /// Random seed (path, distribution): the same seed gives the same image, whatever the
+    /// thread count and the tracer [default: 1].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Distribution: a×a stratified antialiasing samples per pixel [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    aa: Option<u32>,
+    /// Distribution: N×N shadow samples per light per hit [default: 4; RTRPS uses 16].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    light_samples: Option<u32>,
+    /// Distribution: N×N diffuse bounce samples per hit, 0 for none [default: 0].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=64))]
+    bounce_samples: Option<u32>,
+    /// A square area light x,y,z,size,power (horizontal, facing down, white, power in watts);
+    /// repeatable; added to the scene's emissive meshes (path, distribution).
+    #[arg(long, value_name = "X,Y,Z,SIZE,POWER", allow_hyphen_values = true)]
+    area_light: Vec<String>,
+    /// Instant radiosity: VPLs wanted (Mora: 1000, 10000, 40000) [default: 1000].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
+    vpls: Option<u32>,
+    /// Instant radiosity: diffuse bounces of each photon (Mora: 1, 3, 5) [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    vpl_bounces: Option<u32>,
+    /// Instant radiosity: VPLs each camera hit sends shadow rays to [default: 64].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    vpl_subset: Option<u32>,
     /// Draw the tracer's per-ray cost instead of shading: nodes entered, tests, or ray/triangle
     /// tests, in false colour with a colour bar (the scale is printed too).
     #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
@@ -55,8 +81,38 @@ pub struct RenderArgs {
 pub enum Integrator {
     /// One ray per pixel, shaded (`--shade`).
     Raycast,
-    /// Diffuse path tracing under a sky, one batch per bounce.
+    /// Diffuse path tracing, one batch per bounce, with next-event estimation to the area lights
+    /// (under a sky when there are none).
     Path,
+    /// Distribution ray tracing: a×a antialiasing, N×N shadow samples per light per hit as
+    /// origin-grid groups, optional N_b×N_b diffuse bounce.
+    Distribution,
+    /// Instant radiosity: photons from the lights leave VPLs; camera hits shadow-ray a subset.
+    InstantRadiosity,
+}
+
+/// Parses `--area-light x,y,z,size,power` (the error names the flag and the value).
+fn area_light(s: &str) -> Result<raysift::render::light::AreaLight> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("--area-light {s:?}: expected x,y,z,size,power numbers"))?;
+    let [x, y, z, size, power] = v[..] else {
+        bail!(
+            "--area-light {s:?}: expected 5 numbers x,y,z,size,power, got {}",
+            v.len()
+        );
+    };
+    if !Vec3::new(x, y, z).is_finite() {
+        bail!("--area-light {s:?}: position must be finite");
+    }
+    Ok(raysift::render::light::AreaLight::square(
+        Vec3::new(x, y, z),
+        size,
+        power,
+        &format!("--area-light {s:?}"),
+    )?)
 }
 
 /// `--shade`'s parser: the allowed names listed in `--help` and in the error.
@@ -77,6 +133,59 @@ fn heatmap_parser() -> impl clap::builder::TypedValueParser<Value = CostKind> {
 /// work is done.
 fn check(a: &RenderArgs) -> Result<()> {
     check_png(&a.out)?;
+    for l in &a.area_light {
+        area_light(l)?;
+    }
+    let dist = a.integrator == Integrator::Distribution;
+    let ir = a.integrator == Integrator::InstantRadiosity;
+    for (given, flag) in [
+        (a.vpls.is_some(), "--vpls"),
+        (a.vpl_bounces.is_some(), "--vpl-bounces"),
+        (a.vpl_subset.is_some(), "--vpl-subset"),
+    ] {
+        if given && !ir {
+            bail!("{flag} applies to --integrator instant-radiosity only");
+        }
+    }
+    if ir {
+        for (given, flag) in [
+            (a.heatmap.is_some(), "--heatmap"),
+            (a.shade.is_some(), "--shade"),
+            (a.light.is_some(), "--light (use --area-light)"),
+            (a.spp.is_some(), "--spp"),
+            (a.bounces.is_some(), "--bounces (use --vpl-bounces)"),
+        ] {
+            if given {
+                bail!("--integrator instant-radiosity takes no {flag}");
+            }
+        }
+    }
+    for (given, flag) in [
+        (a.aa.is_some(), "--aa"),
+        (a.light_samples.is_some(), "--light-samples"),
+        (a.bounce_samples.is_some(), "--bounce-samples"),
+    ] {
+        if given && !dist {
+            bail!("{flag} applies to --integrator distribution only");
+        }
+    }
+    if a.integrator == Integrator::Raycast && (!a.area_light.is_empty() || a.seed.is_some()) {
+        bail!("--area-light and --seed apply to --integrator path or distribution, not to ray casting");
+    }
+    if dist {
+        for (given, flag) in [
+            (a.heatmap.is_some(), "--heatmap"),
+            (a.shade.is_some(), "--shade"),
+            (a.light.is_some(), "--light (use --area-light)"),
+            (a.spp.is_some(), "--spp (use --aa)"),
+            (a.bounces.is_some(), "--bounces (use --bounce-samples)"),
+        ] {
+            if given {
+                bail!("--integrator distribution takes no {flag}");
+            }
+        }
+        return Ok(());
+    }
     let path = a.integrator == Integrator::Path;
     if a.heatmap.is_some() {
         for (given, flag) in [
@@ -94,7 +203,7 @@ fn check(a: &RenderArgs) -> Result<()> {
             bail!("--shade applies to ray casting, not to --integrator path (which shades diffusely under a sky)");
         }
         if a.light.is_some() {
-            bail!("--light applies to ray casting with --shade diffuse, not to --integrator path (lit by its sky)");
+            bail!("--light applies to ray casting with --shade diffuse, not to --integrator path (use --area-light)");
         }
     } else {
         for (given, flag) in [
@@ -172,18 +281,84 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         }
         return Ok(());
     }
+    let extra = a
+        .area_light
+        .iter()
+        .map(|l| area_light(l))
+        .collect::<Result<Vec<_>>>()?;
+    let lights = render::light::Lights::new(&s, extra);
+    if a.integrator != Integrator::Raycast && a.integrator != Integrator::Path && lights.is_empty()
+    {
+        bail!("this integrator needs a light: the scene has no emissive material; add --area-light x,y,z,size,power");
+    }
+    if a.integrator == Integrator::InstantRadiosity {
+        let d = render::radiosity::IrConfig::default();
+        let cfg = render::radiosity::IrConfig {
+            vpls: a.vpls.unwrap_or(d.vpls),
+            bounces: a.vpl_bounces.unwrap_or(d.bounces),
+            subset: a.vpl_subset.unwrap_or(d.subset),
+            seed: a.seed.unwrap_or(d.seed),
+            ..d
+        };
+        let (rad, nv, phases) =
+            render::radiosity::instant_radiosity(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
+        pb.finish_and_clear();
+        render::to_image(&rad, w, h).save_png(&a.out)?;
+        return report_phases(
+            a,
+            &s,
+            tracer.as_ref(),
+            &prep,
+            t0,
+            &phases,
+            serde_json::json!({
+                "integrator": "instant-radiosity", "vpls": nv, "vpl_bounces": cfg.bounces,
+                "vpl_subset": cfg.subset, "lights": lights.lights.len(),
+            }),
+        );
+    }
+    if a.integrator == Integrator::Distribution {
+        let d = render::distribution::DistConfig::default();
+        let cfg = render::distribution::DistConfig {
+            aa: a.aa.unwrap_or(d.aa),
+            light_side: a.light_samples.unwrap_or(d.light_side),
+            bounce_side: a.bounce_samples.unwrap_or(d.bounce_side),
+            seed: a.seed.unwrap_or(d.seed),
+        };
+        let (rad, phases) =
+            render::distribution::distribution(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
+        pb.finish_and_clear();
+        render::to_image(&rad, w, h).save_png(&a.out)?;
+        return report_phases(
+            a,
+            &s,
+            tracer.as_ref(),
+            &prep,
+            t0,
+            &phases,
+            serde_json::json!({
+                "integrator": "distribution", "aa": cfg.aa, "light_samples": cfg.light_side,
+                "bounce_samples": cfg.bounce_side, "lights": lights.lights.len(),
+            }),
+        );
+    }
     if a.integrator == Integrator::Path {
         let defaults = render::path::PathConfig::default();
         let cfg = render::path::PathConfig {
             spp: a.spp.unwrap_or(defaults.spp),
             bounces: a.bounces.unwrap_or(defaults.bounces),
+            seed: a.seed.unwrap_or(defaults.seed),
             ..defaults
         };
-        let (img, per_depth) = render::path::path_trace(&s, tracer.as_ref(), &cam, w, h, &cfg)?;
+        let (rad, per_depth) =
+            render::path::path_trace_lit(&s, tracer.as_ref(), &cam, w, h, &cfg, &lights)?;
         pb.finish_and_clear();
-        img.save_png(&a.out)?;
-        let rays: u64 = per_depth.iter().map(|b| b.rays).sum();
-        let trace_ms: f64 = per_depth.iter().map(|b| b.stats.trace_ms).sum();
+        render::to_image(&rad, w, h).save_png(&a.out)?;
+        let rays: u64 = per_depth.iter().map(|b| b.rays + b.shadow_rays).sum();
+        let trace_ms: f64 = per_depth
+            .iter()
+            .map(|b| b.stats.trace_ms + b.shadow.trace_ms)
+            .sum();
         if a.tracer.json {
             print_json(&PathReport {
                 scene: s.name.clone(),
@@ -224,8 +399,14 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         if a.stats {
             for b in &per_depth {
                 eprintln!(
-                    "depth {}: {} rays, {} hits, {:.1} ms, {:.2} Mrays/s",
-                    b.depth, b.rays, b.hits, b.stats.trace_ms, b.mrays_per_s
+                    "depth {}: {} rays, {} hits, {:.1} ms, {:.2} Mrays/s; {} shadow rays, {:.1} ms",
+                    b.depth,
+                    b.rays,
+                    b.hits,
+                    b.stats.trace_ms,
+                    b.mrays_per_s,
+                    b.shadow_rays,
+                    b.shadow.trace_ms
                 );
             }
         }
@@ -271,6 +452,61 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     }
     if a.stats {
         print_counters(&prep, tracer.bytes(), &passes);
+    }
+    Ok(())
+}
+
+/// The report of a phased render (distribution, instant radiosity): JSON with `extra`'s fields,
+/// or one line; `--stats` adds a line per phase with rays and Mrays/s.
+fn report_phases(
+    a: &RenderArgs,
+    s: &raysift::Scene,
+    tracer: &dyn raysift::Tracer,
+    prep: &Stats,
+    t0: Instant,
+    phases: &[raysift::render::distribution::Phase],
+    extra: serde_json::Value,
+) -> Result<()> {
+    let (w, h) = (a.view.width, a.view.height);
+    let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let passes: Vec<PassReport> = phases
+        .iter()
+        .filter(|p| p.rays > 0)
+        .map(|p| PassReport::of(p.name, &p.stats))
+        .collect();
+    let rays: u64 = phases.iter().map(|p| p.rays).sum();
+    let trace_ms: f64 = phases.iter().map(|p| p.stats.trace_ms).sum();
+    if a.tracer.json {
+        let mut j = serde_json::json!({
+            "scene": s.name, "triangles": s.len(), "tracer": tracer.name(),
+            "width": w, "height": h, "threads": rayon::current_num_threads(),
+            "rays": rays, "prepare_ms": prep.prepare_ms,
+            "trace_ms": trace_ms, "frame_ms": frame_ms,
+            "mrays_per_s": mrays_per_s(rays, trace_ms), "passes": passes,
+            "phase_hits": phases.iter().map(|p| (p.name, p.hits)).collect::<std::collections::BTreeMap<_, _>>(),
+            "out": a.out.display().to_string(),
+        });
+        if let (Some(j), serde_json::Value::Object(e)) = (j.as_object_mut(), extra) {
+            j.extend(e);
+        }
+        print_json(&j)?;
+    } else {
+        eprintln!(
+            "wrote {} ({rays} rays in {trace_ms:.0} ms of tracing)",
+            a.out.display()
+        );
+    }
+    if a.stats {
+        for p in phases.iter().filter(|p| p.rays > 0) {
+            eprintln!(
+                "{}: {} rays, {} hit/blocked, {:.1} ms, {:.2} Mrays/s",
+                p.name,
+                p.rays,
+                p.hits,
+                p.stats.trace_ms,
+                mrays_per_s(p.rays, p.stats.trace_ms)
+            );
+        }
     }
     Ok(())
 }

@@ -489,3 +489,70 @@ fn unknown_options_list_the_valid_ones() {
         "takes no options",
     );
 }
+
+/// Renderer arguments: a zero-area or negative-power light, a malformed light, a distribution
+/// render without any light, flags of another integrator: one line naming the flag, exit 2,
+/// no image written.
+#[test]
+fn render_light_and_integrator_errors_write_nothing() {
+    let d = tmp();
+    let out = p(d.path(), "img.png");
+    let base = [
+        "render",
+        "sphere:20",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        &out,
+    ];
+    let with = |extra: &[&str]| -> Vec<String> {
+        base.iter().chain(extra).map(|s| s.to_string()).collect()
+    };
+    let run = |extra: &[&str], needle: &str| {
+        let a = with(extra);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        fails(&a, needle);
+        assert!(!Path::new(&out).exists(), "{extra:?} wrote {out}");
+    };
+    let dist = ["--integrator", "distribution"];
+    run(
+        &[&dist[..], &["--area-light", "0,2,0,0,10"]].concat(),
+        "zero area",
+    );
+    run(
+        &[&dist[..], &["--area-light", "0,2,0,1,-3"]].concat(),
+        "non-negative",
+    );
+    run(
+        &[&dist[..], &["--area-light", "0,2,0,1"]].concat(),
+        "--area-light",
+    );
+    run(
+        &[&dist[..], &["--area-light", "0,x,0,1,1"]].concat(),
+        "--area-light",
+    );
+    run(&dist, "needs a light");
+    run(&[&dist[..], &["--spp", "4"]].concat(), "--spp");
+    run(&["--aa", "2"], "--aa applies to --integrator distribution");
+    run(&["--seed", "2"], "--seed");
+    run(&["--vpls", "10"], "--vpls applies to --integrator instant-radiosity");
+    run(&["--integrator", "instant-radiosity"], "needs a light");
+    run(
+        &["--integrator", "path", "--light-samples", "2"],
+        "--light-samples",
+    );
+    // And the good case writes the image.
+    ok(&with(
+        &[
+            &dist[..],
+            &["--area-light", "0,2,0,1,10", "--light-samples", "2"],
+        ]
+        .concat(),
+    )
+    .iter()
+    .map(String::as_str)
+    .collect::<Vec<_>>());
+    assert!(Path::new(&out).exists());
+}

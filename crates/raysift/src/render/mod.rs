@@ -2,10 +2,17 @@
 //!
 //! [`raycast`]: primary rays with normal, depth or diffuse shading; diffuse shading adds a point
 //! light with hard shadows traced as one any-hit batch (the "Conic + 1 light" workload of Mora 2011,
-//! Fig. 8). Later integrators (distribution, path tracing) live beside it.
+//! Fig. 8). When no point light is given and the scene has area lights (emissive materials),
+//! diffuse shading is instead the scene's direct light: [`distribution`] with 4×4 shadow samples
+//! per light and hit, surfaces in their material colours (direct light only; the path tracer
+//! adds the indirect). [`path`] (path tracing with next-event estimation), [`distribution`]
+//! (distribution ray tracing) and [`light`] (area lights) live beside it.
 
+pub mod distribution;
 pub mod heatmap;
+pub mod light;
 pub mod path;
+pub mod radiosity;
 
 use crate::error::{Error, Result};
 use crate::rays::{generate, Camera, HitBatch, RayBatch};
@@ -134,6 +141,16 @@ pub fn raycast(
                 })
                 .collect()
         }
+        Shade::Diffuse if light.is_none() && scene.has_emission() => {
+            let cfg = distribution::DistConfig::default();
+            let lights = light::Lights::of_scene(scene);
+            let (c, ph) =
+                distribution::distribution(scene, tracer, camera, width, height, &lights, &cfg)?;
+            stats.primary = ph[0].stats.clone();
+            stats.hits = ph[0].hits;
+            stats.shadow = Some(ph[2].stats.clone());
+            c
+        }
         Shade::Diffuse => {
             let light = light.unwrap_or_else(|| default_light(scene, camera));
             let (shadow_rays, from) = generate::shadow_rays(scene, &rays, &hits, light);
@@ -146,6 +163,11 @@ pub fn raycast(
             diffuse(scene, &rays, &hits, &lit, light, width, height)
         }
     };
+    Ok((to_image(&colour, width, height), stats))
+}
+
+/// Linear radiance to an 8-bit image: clamped to [0, 1], gamma 1/2.2.
+pub fn to_image(colour: &[Vec3], width: u32, height: u32) -> Image {
     let rgb = colour
         .iter()
         .flat_map(|c| {
@@ -153,7 +175,7 @@ pub fn raycast(
                 .map(|x| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8)
         })
         .collect();
-    Ok((Image { width, height, rgb }, stats))
+    Image { width, height, rgb }
 }
 
 fn diffuse(

@@ -1,11 +1,23 @@
 //! A diffuse path tracer driven in whole-bounce batches: the workload of Mora 2011 §4.2 (Fig. 10),
 //! where DACRT's random-ray mode receives every ray of one bounce in one batch.
 //!
-//! Scene: every surface is grey Lambertian (albedo 0.7) under a sky light (white above the
-//! horizon, darker below); paths have a fixed number of bounces with no Russian roulette, as in the
-//! paper, so every bounce's batch holds all still-alive paths. The renderer sees only the
-//! [`Tracer`] contract, so it runs with every tracer.
+//! Surfaces are Lambertian with their material's colour (grey 0.7, `PathConfig::albedo`, where
+//! the scene gives none) or perfect mirrors; paths have a fixed number of bounces with no Russian
+//! roulette, as in the paper, so every bounce's batch holds all still-alive paths.
+//!
+//! Lighting: when the scene has area lights (emissive materials, or lights passed to
+//! [`path_trace_lit`]) the background is black and every diffuse vertex does **next-event
+//! estimation**: one shadow ray to a point chosen on a light (light by power, point uniform by
+//! area), all of one bounce's shadow rays traced as one any-hit batch. Plain NEE, no MIS: a
+//! light's emission is counted only where NEE cannot see it, on camera rays and after mirror
+//! bounces, so nothing is counted twice; for diffuse surfaces and area lights MIS would only
+//! lower variance near small bright lights, at the cost of a BSDF-ray light lookup per hit.
+//! Without lights the scene is lit by a sky (white above the horizon, darker below), as before.
+//! The random numbers of a path vertex come from (seed, sample, depth, pixel), so the image does
+//! not depend on the thread count or on the tracer. The renderer sees only the [`Tracer`]
+//! contract, so it runs with every tracer.
 
+use super::light::{geometry_term, shadow_ray, Lights};
 use super::Image;
 use crate::error::Result;
 use crate::rays::{generate, Camera, HitBatch, Ray, RayBatch};
@@ -52,6 +64,10 @@ pub struct BounceStats {
     pub stats: Stats,
     /// Rays per microsecond (= Mrays/s) of the trace calls.
     pub mrays_per_s: f64,
+    /// Next-event shadow rays traced from this depth's hits (0 without lights).
+    pub shadow_rays: u64,
+    /// Their tracer counters and trace time.
+    pub shadow: Stats,
 }
 
 fn sky(d: Vec3) -> Vec3 {
@@ -63,7 +79,8 @@ fn sky(d: Vec3) -> Vec3 {
     }
 }
 
-/// Renders with paths of `cfg.bounces` diffuse bounces; returns the image and per-depth stats.
+/// Renders with paths of `cfg.bounces` bounces, lit by the scene's own lights (or the sky when
+/// it has none); returns the image and per-depth stats.
 pub fn path_trace(
     scene: &Scene,
     tracer: &dyn Tracer,
@@ -72,6 +89,85 @@ pub fn path_trace(
     height: u32,
     cfg: &PathConfig,
 ) -> Result<(Image, Vec<BounceStats>)> {
+    let (sum, per_depth) = path_trace_lit(
+        scene,
+        tracer,
+        camera,
+        width,
+        height,
+        cfg,
+        &Lights::of_scene(scene),
+    )?;
+    Ok((super::to_image(&sum, width, height), per_depth))
+}
+
+/// A generator for one path vertex: independent of batch order and thread count.
+#[inline]
+pub(crate) fn vertex_rng(seed: u64, sample: u32, depth: u32, pixel: u32) -> rand_pcg::Pcg64Mcg {
+    let k = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add((sample as u64) << 40 ^ (depth as u64) << 32 ^ pixel as u64);
+    rand_pcg::Pcg64Mcg::seed_from_u64(k)
+}
+
+/// Jittered primary rays, one per pixel (same convention as `Camera::rays`, plus a sub-pixel
+/// offset from `vertex_rng(seed, s, u32::MAX, pixel)`).
+pub(crate) fn jittered_primary(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    seed: u64,
+    s: u32,
+) -> RayBatch {
+    let n = width as usize * height as usize;
+    let (right, up, forward) = camera.basis();
+    let tan = (camera.fov_deg.to_radians() * 0.5).tan();
+    let dirs: Vec<Vec3> = (0..n)
+        .into_par_iter()
+        .map(|k| {
+            let mut rng = vertex_rng(seed, s, u32::MAX, k as u32);
+            let (i, j) = (
+                (k % width as usize) as f32 + rng.gen::<f32>(),
+                (k / width as usize) as f32 + rng.gen::<f32>(),
+            );
+            let x = (2.0 * i / width as f32 - 1.0) * tan * width as f32 / height as f32;
+            let y = (1.0 - 2.0 * j / height as f32) * tan;
+            (x * right + y * up + forward).normalize()
+        })
+        .collect();
+    let mut b = RayBatch::from_rays(dirs.into_iter().map(|d| Ray {
+        origin: camera.eye,
+        dir: d,
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    }));
+    b.layout = crate::rays::RayLayout::Pinhole {
+        eye: camera.eye,
+        width,
+        height,
+    };
+    b
+}
+
+/// What one path vertex gives: radiance to add now, the next ray, and a shadow ray with the
+/// radiance it carries if unblocked.
+struct Vertex {
+    add: Vec3,
+    next: Option<(Ray, Vec3, bool)>,
+    shadow: Option<(Ray, Vec3)>,
+}
+
+/// [`path_trace`] with explicit lights; returns the linear radiance per pixel (row-major) and
+/// per-depth stats.
+pub fn path_trace_lit(
+    scene: &Scene,
+    tracer: &dyn Tracer,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    cfg: &PathConfig,
+    lights: &Lights,
+) -> Result<(Vec<Vec3>, Vec<BounceStats>)> {
     let n = width as usize * height as usize;
     let mut sum = vec![Vec3::ZERO; n];
     let mut per_depth: Vec<BounceStats> = (0..=cfg.bounces)
@@ -81,40 +177,16 @@ pub fn path_trace(
         })
         .collect();
     let eps = generate::surface_offset(scene);
-    let (right, up, forward) = camera.basis();
-    let tan = (camera.fov_deg.to_radians() * 0.5).tan();
+    let default = crate::scene::Material {
+        diffuse: Vec3::splat(cfg.albedo),
+        ..Default::default()
+    };
     for s in 0..cfg.spp {
-        // Jittered primary rays (same convention as Camera::rays, plus a sub-pixel offset).
-        let mut rays = {
-            let dirs: Vec<Vec3> = (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    let mut rng =
-                        rand_pcg::Pcg64Mcg::seed_from_u64(cfg.seed ^ ((s as u64) << 40) ^ k as u64);
-                    let (i, j) = (
-                        (k % width as usize) as f32 + rng.gen::<f32>(),
-                        (k / width as usize) as f32 + rng.gen::<f32>(),
-                    );
-                    let x = (2.0 * i / width as f32 - 1.0) * tan * width as f32 / height as f32;
-                    let y = (1.0 - 2.0 * j / height as f32) * tan;
-                    (x * right + y * up + forward).normalize()
-                })
-                .collect();
-            let mut b = RayBatch::from_rays(dirs.into_iter().map(|d| Ray {
-                origin: camera.eye,
-                dir: d,
-                tmin: 0.0,
-                tmax: f32::INFINITY,
-            }));
-            b.layout = crate::rays::RayLayout::Pinhole {
-                eye: camera.eye,
-                width,
-                height,
-            };
-            b
-        };
+        let mut rays = jittered_primary(camera, width, height, cfg.seed, s);
         let mut pixel: Vec<u32> = (0..n as u32).collect();
         let mut throughput = vec![Vec3::ONE; n];
+        // Camera rays and mirror bounces see emission (NEE does not cover them).
+        let mut specular = vec![true; n];
         let mut hits = HitBatch::new(0);
         for depth in 0..=cfg.bounces {
             if rays.is_empty() {
@@ -127,51 +199,120 @@ pub fn path_trace(
             b.rays += rays.len() as u64;
             b.hits += hits.hit_count() as u64;
             b.stats += &st;
-            // Escaped paths collect the sky; the others continue with a cosine-weighted bounce
-            // (whose pdf cancels the cosine, leaving albedo as the weight).
-            let mut next = RayBatch::with_capacity(hits.hit_count());
-            let mut next_pixel = Vec::with_capacity(hits.hit_count());
-            let mut next_tp = Vec::with_capacity(hits.hit_count());
-            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(
-                cfg.seed.wrapping_mul(31) ^ ((s as u64) << 32) ^ depth as u64,
-            );
-            for i in 0..rays.len() {
-                let px = pixel[i] as usize;
-                if !hits.is_hit(i) {
-                    sum[px] += throughput[i] * sky(rays.dir(i));
-                    continue;
+            let last = depth == cfg.bounces;
+            let verts: Vec<Vertex> = (0..rays.len())
+                .into_par_iter()
+                .map(|i| {
+                    let tp = throughput[i];
+                    if !hits.is_hit(i) {
+                        let add = if lights.is_empty() {
+                            tp * sky(rays.dir(i))
+                        } else {
+                            Vec3::ZERO
+                        };
+                        return Vertex {
+                            add,
+                            next: None,
+                            shadow: None,
+                        };
+                    }
+                    let prim = hits.prim[i];
+                    let m = scene.material(prim).unwrap_or(&default);
+                    let add = if specular[i] {
+                        tp * m.emission
+                    } else {
+                        Vec3::ZERO
+                    };
+                    let (p, nrm) = generate::hit_frame(scene, &rays, &hits, i);
+                    let mut rng = vertex_rng(cfg.seed, s, depth, pixel[i]);
+                    let o = p + nrm * eps;
+                    if m.mirror {
+                        let d = rays.dir(i).normalize();
+                        let r = d - 2.0 * d.dot(nrm) * nrm;
+                        let next = (!last).then(|| {
+                            (
+                                Ray {
+                                    origin: o,
+                                    dir: r,
+                                    tmin: 0.0,
+                                    tmax: f32::INFINITY,
+                                },
+                                tp * m.diffuse,
+                                true,
+                            )
+                        });
+                        return Vertex {
+                            add,
+                            next,
+                            shadow: None,
+                        };
+                    }
+                    let f = tp * m.diffuse;
+                    let shadow = (!lights.is_empty())
+                        .then(|| {
+                            let (k, pl, u) = lights.pick(rng.gen());
+                            let l = &lights.lights[k];
+                            let (y, ny) = l.sample(u, rng.gen());
+                            let g = geometry_term(o, nrm, y, ny, l.radiance);
+                            let c = f * std::f32::consts::FRAC_1_PI * g * (l.area / pl);
+                            (shadow_ray(o, y), c)
+                        })
+                        .filter(|(_, c)| c.max_element() > 0.0);
+                    let next = (!last).then(|| {
+                        let dir = generate::cosine_direction(nrm, rng.gen(), rng.gen());
+                        (
+                            Ray {
+                                origin: o,
+                                dir,
+                                tmin: 0.0,
+                                tmax: f32::INFINITY,
+                            },
+                            f,
+                            false,
+                        )
+                    });
+                    Vertex { add, next, shadow }
+                })
+                .collect();
+            let mut next = RayBatch::with_capacity(verts.len());
+            let (mut next_pixel, mut next_tp, mut next_spec) = (Vec::new(), Vec::new(), Vec::new());
+            let mut shadows = RayBatch::with_capacity(verts.len());
+            let mut carried = Vec::new();
+            for (i, v) in verts.into_iter().enumerate() {
+                let px = pixel[i];
+                sum[px as usize] += v.add;
+                if let Some((r, t, sp)) = v.next {
+                    next.push(r);
+                    next_pixel.push(px);
+                    next_tp.push(t);
+                    next_spec.push(sp);
                 }
-                if depth == cfg.bounces {
-                    continue;
+                if let Some((r, c)) = v.shadow {
+                    shadows.push(r);
+                    carried.push((px, c));
                 }
-                next.push(generate::bounce_ray(
-                    scene,
-                    &rays,
-                    &hits,
-                    i,
-                    eps,
-                    rng.gen(),
-                    rng.gen(),
-                ));
-                next_pixel.push(px as u32);
-                next_tp.push(throughput[i] * cfg.albedo);
+            }
+            if !shadows.is_empty() {
+                let (blocked, st) = tracer.occluded_timed(scene, &shadows)?;
+                let b = &mut per_depth[depth as usize];
+                b.shadow_rays += shadows.len() as u64;
+                b.shadow += &st;
+                for (k, &(px, c)) in carried.iter().enumerate() {
+                    if !blocked[k] {
+                        sum[px as usize] += c;
+                    }
+                }
             }
             rays = next;
             pixel = next_pixel;
             throughput = next_tp;
+            specular = next_spec;
         }
     }
     for b in &mut per_depth {
         b.mrays_per_s = b.rays as f64 / (b.stats.trace_ms * 1e3).max(1e-9);
     }
     let inv = 1.0 / cfg.spp.max(1) as f32;
-    let rgb = sum
-        .iter()
-        .flat_map(|c| {
-            (*c * inv)
-                .to_array()
-                .map(|x| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8)
-        })
-        .collect();
-    Ok((Image { width, height, rgb }, per_depth))
+    sum.iter_mut().for_each(|c| *c *= inv);
+    Ok((sum, per_depth))
 }

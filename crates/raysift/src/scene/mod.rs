@@ -33,17 +33,81 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
     /// Local-to-world transform.
     pub transform: Affine3A,
+    /// Materials by triangle range: `(first, material)` applies from the mesh's triangle `first`
+    /// up to the next entry's `first` (entries in increasing order). Empty: the mesh has no
+    /// material, and renderers use their default grey ([`Scene::material`] gives `None`).
+    pub materials: Vec<(u32, Material)>,
 }
 
 impl Mesh {
-    /// A mesh with identity transform.
+    /// A mesh with identity transform and no material.
     pub fn new(name: impl Into<String>, positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Self {
         Self {
             name: name.into(),
             positions,
             indices,
             transform: Affine3A::IDENTITY,
+            materials: Vec::new(),
         }
+    }
+
+    /// The mesh with one material on all its triangles.
+    pub fn with_material(mut self, m: Material) -> Self {
+        self.materials = vec![(0, m)];
+        self
+    }
+}
+
+/// A surface's material, as the renderers use it: Lambertian diffuse reflectance, emitted
+/// radiance (non-zero makes the surface an area light, emitting from both sides), or a perfect
+/// mirror (reflects everything; its diffuse colour is then the mirror's tint).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Material {
+    /// Diffuse reflectance (albedo) per RGB channel, each in [0, 1].
+    pub diffuse: Vec3,
+    /// Emitted radiance per RGB channel (W·sr⁻¹·m⁻² in scene units), each >= 0.
+    pub emission: Vec3,
+    /// A perfect mirror.
+    pub mirror: bool,
+}
+
+impl Default for Material {
+    /// Grey 0.7, not emissive, not a mirror (the path tracer's albedo for material-less meshes).
+    fn default() -> Self {
+        Self {
+            diffuse: Vec3::splat(0.7),
+            emission: Vec3::ZERO,
+            mirror: false,
+        }
+    }
+}
+
+impl Material {
+    /// True when the surface emits light.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+
+    /// Checks that the colours are finite, the albedo in [0, 1] and the emission non-negative;
+    /// the error names the field.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if !self.diffuse.is_finite()
+            || self.diffuse.min_element() < 0.0
+            || self.diffuse.max_element() > 1.0
+        {
+            return Err(format!(
+                "diffuse colour {:?} outside [0, 1]",
+                self.diffuse.to_array()
+            ));
+        }
+        if !self.emission.is_finite() || self.emission.min_element() < 0.0 {
+            return Err(format!(
+                "emission {:?} must be finite and non-negative",
+                self.emission.to_array()
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -116,6 +180,11 @@ pub struct Scene {
     /// Version at which each mesh last moved rigidly / deformed (0: never since creation).
     moved_at: Vec<u64>,
     deformed_at: Vec<u64>,
+    /// Material runs over primitive ids: run `r` covers `mat_start[r]..mat_start[r + 1]` (the
+    /// last up to the end) with `mat[r]` (`None`: no material). 4 + 32 B per run, not per
+    /// triangle; a lookup is a binary search over the runs.
+    mat_start: Vec<u32>,
+    mat: Vec<Option<Material>>,
 }
 
 static NEXT_SCENE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
@@ -140,6 +209,8 @@ impl Clone for Scene {
             version: 0,
             moved_at: vec![0; self.meshes.len()],
             deformed_at: vec![0; self.meshes.len()],
+            mat_start: self.mat_start.clone(),
+            mat: self.mat.clone(),
         }
     }
 }
@@ -218,6 +289,7 @@ impl Scene {
                 ));
             }
             check_transform(&name, m, mesh, &mesh.transform)?;
+            check_materials(&name, m, mesh)?;
             total += mesh.indices.len() as u64;
         }
         if total >= u32::MAX as u64 {
@@ -229,6 +301,28 @@ impl Scene {
         first_prim.push(total as u32);
         let nm = meshes.len();
         let n = total as usize;
+        let (mut mat_start, mut mat) = (Vec::new(), Vec::new());
+        for (m, mesh) in meshes.iter().enumerate() {
+            if mesh.indices.is_empty() {
+                continue;
+            }
+            let first = first_prim[m];
+            let lead = mesh
+                .materials
+                .first()
+                .is_none_or(|r| r.0 > 0)
+                .then_some((0, None));
+            for (k, material) in lead
+                .into_iter()
+                .chain(mesh.materials.iter().map(|&(k, m)| (k, Some(m))))
+            {
+                // Adjacent equal runs (across meshes too) are merged.
+                if mat.last() != Some(&material) {
+                    mat_start.push(first + k);
+                    mat.push(material);
+                }
+            }
+        }
         let mut scene = Self {
             name,
             meshes,
@@ -246,6 +340,8 @@ impl Scene {
             version: 0,
             moved_at: vec![0; nm],
             deformed_at: vec![0; nm],
+            mat_start,
+            mat,
         };
         for m in 0..nm {
             scene.bake_mesh(m);
@@ -462,7 +558,40 @@ impl Scene {
                     + std::mem::size_of::<Mesh>()
             })
             .sum();
-        src + self.soup.bytes() + self.first_prim.capacity() * 4
+        src + self.soup.bytes()
+            + self.first_prim.capacity() * 4
+            + self.mat_start.capacity() * 4
+            + self.mat.capacity() * std::mem::size_of::<Option<Material>>()
+    }
+
+    /// The material of primitive `prim` (`None`: its mesh has none, or `prim` is out of range).
+    #[inline]
+    pub fn material(&self, prim: u32) -> Option<&Material> {
+        if prim as usize >= self.len() {
+            return None;
+        }
+        let r = self
+            .mat_start
+            .partition_point(|&f| f <= prim)
+            .checked_sub(1)?;
+        self.mat[r].as_ref()
+    }
+
+    /// The material runs: `(first primitive, material)` in increasing order, each up to the next
+    /// (the last to the end of the scene); `None` for primitives without a material.
+    pub fn material_runs(
+        &self,
+    ) -> impl Iterator<Item = (std::ops::Range<usize>, Option<&Material>)> {
+        let n = self.len();
+        (0..self.mat.len()).map(move |r| {
+            let end = self.mat_start.get(r + 1).map_or(n, |&e| e as usize);
+            (self.mat_start[r] as usize..end, self.mat[r].as_ref())
+        })
+    }
+
+    /// True when some primitive's material emits light (the scene has area lights).
+    pub fn has_emission(&self) -> bool {
+        self.mat.iter().flatten().any(Material::is_emissive)
     }
 
     /// Geometric unit normal of triangle `prim` in world space (zero for degenerate ones).
@@ -493,6 +622,26 @@ fn check_transform(name: &str, m: usize, mesh: &Mesh, t: &Affine3A) -> Result<()
             "non-finite transform",
         ))
     }
+}
+
+fn check_materials(name: &str, m: usize, mesh: &Mesh) -> Result<()> {
+    let nt = mesh.indices.len();
+    let mut prev: Option<u32> = None;
+    for (r, (first, material)) in mesh.materials.iter().enumerate() {
+        let place = format!("mesh {m} ({}), material {r}", mesh.name);
+        if *first as usize >= nt.max(1) || prev.is_some_and(|p| p >= *first) {
+            return Err(Error::parse(
+                name,
+                place,
+                format!("first triangle {first} out of order or past the mesh's {nt} triangles"),
+            ));
+        }
+        material
+            .validate()
+            .map_err(|e| Error::parse(name, &place, e))?;
+        prev = Some(*first);
+    }
+    Ok(())
 }
 
 fn transform_is_finite(t: &Affine3A) -> bool {
@@ -640,6 +789,61 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("nan.ply") && e.contains("vertex 1"), "{e}");
+    }
+
+    #[test]
+    fn materials_by_triangle_range() {
+        let red = Material {
+            diffuse: Vec3::new(0.9, 0.1, 0.1),
+            ..Default::default()
+        };
+        let lamp = Material {
+            emission: Vec3::splat(5.0),
+            ..Default::default()
+        };
+        let mut a = quad();
+        a.materials = vec![(1, red), (2, lamp)];
+        let s = Scene::from_meshes("t", vec![quad(), a, quad().with_material(red)]).unwrap();
+        let got: Vec<Option<Material>> = (0..10).map(|p| s.material(p).copied()).collect();
+        let want = [
+            None,
+            None,
+            None,
+            None,
+            Some(red),
+            Some(lamp),
+            Some(red),
+            Some(red),
+            Some(red),
+            None,
+        ];
+        assert_eq!(got, want);
+        assert!(s.has_emission());
+        assert!(!Scene::from_meshes("t", vec![quad().with_material(red)])
+            .unwrap()
+            .has_emission());
+        let runs: Vec<_> = s.material_runs().map(|(r, m)| (r, m.copied())).collect();
+        assert_eq!(runs[0], (0..4, None));
+        assert_eq!(runs[2], (5..6, Some(lamp)));
+        assert_eq!(runs[3], (6..9, Some(red)));
+        let mut bad = quad();
+        bad.materials = vec![(
+            0,
+            Material {
+                diffuse: Vec3::splat(1.5),
+                ..Default::default()
+            },
+        )];
+        let e = Scene::from_meshes("b.obj", vec![bad])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("b.obj") && e.contains("material 0") && e.contains("diffuse"),
+            "{e}"
+        );
+        let mut bad = quad();
+        bad.materials = vec![(3, red)];
+        assert!(Scene::from_meshes("b", vec![bad]).is_err());
     }
 
     #[test]

@@ -332,3 +332,41 @@ fn gltf_deep_hierarchy_does_not_overflow_the_stack() {
     assert_eq!(s.len(), 4);
     assert_eq!(tri(&s, 0)[1], v(1., 0., 1.));
 }
+
+/// glTF materials: baseColorFactor → diffuse, emissiveFactor → emission, metallic 1 with
+/// roughness 0 → mirror; per primitive range of the node's mesh.
+#[test]
+fn gltf_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let buffer = format!(
+        r#"{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}"#,
+        base64(&gltf_buffer())
+    );
+    let json = gltf_json(&buffer)
+        .replace(
+            r#"{"attributes": {"POSITION": 0}, "indices": 1}"#,
+            r#"{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}"#,
+        )
+        .replace(
+            r#"{"attributes": {"POSITION": 0}, "mode": 5}"#,
+            r#"{"attributes": {"POSITION": 0}, "mode": 5, "material": 1}"#,
+        )
+        .replace(
+            r#""buffers""#,
+            r#""materials": [
+    {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.25, 1.0, 1.0]}, "emissiveFactor": [2, 3, 4]},
+    {"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.0}}
+  ],
+  "buffers""#,
+        );
+    let s = load(write(dir.path(), "m.gltf", json.as_bytes())).unwrap();
+    check_gltf(&s);
+    let m0 = *s.material(0).unwrap();
+    assert_eq!(m0.diffuse, v(0.5, 0.25, 1.0));
+    assert_eq!(m0.emission, v(2., 3., 4.));
+    assert!(!m0.mirror);
+    assert_eq!(*s.material(1).unwrap(), m0);
+    let m2 = *s.material(2).unwrap();
+    assert!(m2.mirror && m2.diffuse == Vec3::ONE && m2.emission == Vec3::ZERO);
+    assert_eq!(*s.material(3).unwrap(), m2);
+}

@@ -144,3 +144,75 @@ fn obj_malformed() {
         "line 4",
     );
 }
+
+/// OBJ materials: `Kd`/`Ke`/`illum 3` from the `.mtl` next to the file, per `usemtl` range
+/// without splitting meshes; a missing `.mtl` gives no materials; a malformed one names its line.
+#[test]
+fn obj_materials_from_mtl() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng a\nusemtl red\nf 1 2 3 4\nusemtl lamp\nf 1 2 3\nusemtl nothere\nf 1 3 4\ng b\nusemtl glass\nf 1 2 3\n";
+    let p = write(dir.path(), "s.obj", obj);
+    // No .mtl yet: loads, no materials.
+    let s = load(&p).unwrap();
+    assert!((0..5).all(|k| s.material(k).is_none()));
+    write(
+        dir.path(),
+        "m.mtl",
+        b"newmtl red\nKd 0.8 0.1 0.1 # comment\nnewmtl lamp\nKd 0 0 0\nKe 10 9 8\nnewmtl glass\nillum 3\n",
+    );
+    let s = load(&p).unwrap();
+    assert_eq!(s.meshes().len(), 2, "usemtl does not split meshes");
+    let m = |k: u32| *s.material(k).unwrap();
+    assert_eq!(m(0).diffuse, v(0.8, 0.1, 0.1));
+    assert_eq!(m(1), m(0));
+    assert_eq!(m(2).emission, v(10., 9., 8.));
+    assert!(!m(2).mirror && s.has_emission());
+    assert_eq!(
+        m(3),
+        raysift::scene::Material::default(),
+        "unknown name after a known one"
+    );
+    assert!(m(4).mirror);
+    // Bytes only: no file system, no materials.
+    let s = raysift::scene::io::load_bytes(obj, "s.obj", None).unwrap();
+    assert!(s.material(0).is_none());
+    // A malformed .mtl names itself and the line.
+    write(dir.path(), "m.mtl", b"newmtl red\n\nKd 0.8 x 0.1\n");
+    let e = load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("m.mtl") && e.contains("line 3") && e.contains("Kd"),
+        "{e}"
+    );
+    write(dir.path(), "m.mtl", b"newmtl red\nKe 1 2\n");
+    let e = load(&p).unwrap_err().to_string();
+    assert!(e.contains("m.mtl") && e.contains("line 2"), "{e}");
+}
+
+/// The shared Cornell box: red left wall, green right wall, an emissive ceiling light.
+#[test]
+fn obj_cornell_box_materials() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/scenes/CornellBox-Original.obj");
+    if !p.exists() {
+        eprintln!("skipped: {} not found", p.display());
+        return;
+    }
+    let s = load(&p).unwrap();
+    let by_name = |n: &str| {
+        let m = s.meshes().iter().position(|m| m.name == n).unwrap();
+        *s.material(s.mesh_prims(m).start as u32).unwrap()
+    };
+    assert_eq!(by_name("rightWall").diffuse, v(0.14, 0.45, 0.091));
+    assert_eq!(by_name("light").emission, v(17., 12., 4.));
+    assert!(by_name("floor").emission == Vec3::ZERO);
+    // leftWall's mesh holds the red wall then the short box faces (the file's `g` order).
+    let lw = s
+        .meshes()
+        .iter()
+        .position(|m| m.name == "leftWall")
+        .unwrap();
+    assert_eq!(
+        s.material(s.mesh_prims(lw).start as u32).unwrap().diffuse,
+        v(0.63, 0.065, 0.05)
+    );
+}

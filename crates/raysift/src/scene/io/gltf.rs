@@ -34,7 +34,7 @@
 
 use super::limits;
 use crate::error::{Error, Result};
-use crate::scene::Mesh;
+use crate::scene::{Material, Mesh};
 use glam::{Affine3A, Mat4, Vec3};
 use gltf::json;
 use gltf::mesh::Mode;
@@ -79,6 +79,7 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
         file,
         buffers: &buffers,
         cache: HashMap::new(),
+        materials: HashMap::new(),
         pending: Vec::new(),
         mem: limits::mem_available(),
         vertices: 0,
@@ -320,6 +321,8 @@ struct Builder<'a> {
     buffers: &'a [gltf::buffer::Data],
     /// Decoded meshes by glTF mesh index, so instances decode once.
     cache: HashMap<usize, (Vec<Vec3>, Vec<[u32; 3]>)>,
+    /// Material runs of each decoded mesh (see [`Builder::record_material`]).
+    materials: HashMap<usize, Vec<(u32, Material)>>,
     /// Instances to build: mesh name, glTF mesh index, world transform.
     pending: Vec<(String, usize, Mat4)>,
     /// Available memory, read once ([`limits::mem_available`]).
@@ -425,6 +428,9 @@ impl<'a> Builder<'a> {
             let (positions, indices) = &self.cache[&mesh];
             let mut m = Mesh::new(name, positions.clone(), indices.clone());
             m.transform = Affine3A::from_mat4(world);
+            m.materials = self.materials.get(&mesh).cloned().unwrap_or_default();
+            // A trailing run past the last triangle (a material on a primitive with none).
+            m.materials.retain(|r| (r.0 as usize) < m.indices.len());
             out.push(m);
         }
         out
@@ -438,6 +444,37 @@ impl<'a> Builder<'a> {
         let r = self.decode_mesh_counted(mesh);
         (self.vertices, self.triangles) = (v0, t0);
         r
+    }
+
+    /// Materials (the material part of the loader): a primitive's `baseColorFactor` (RGB) is
+    /// its diffuse colour, `emissiveFactor` its emission, and a metallic factor of 1 with a
+    /// roughness of 0 makes a perfect mirror. Textures and `KHR_materials_emissive_strength`
+    /// are not read. A primitive without a material after one with gets the default grey; one
+    /// before any gets none.
+    fn record_material(&mut self, mesh: usize, first: u32, prim: &gltf::Primitive) {
+        let runs = self.materials.entry(mesh).or_default();
+        let m = prim.material();
+        let mat = if m.index().is_none() {
+            if runs.is_empty() {
+                return;
+            }
+            Material::default()
+        } else {
+            let pbr = m.pbr_metallic_roughness();
+            let [r, g, b, _] = pbr.base_color_factor();
+            let finite = |v: Vec3| if v.is_finite() { v } else { Vec3::ZERO };
+            Material {
+                diffuse: finite(Vec3::new(r, g, b)).clamp(Vec3::ZERO, Vec3::ONE),
+                emission: finite(Vec3::from_array(m.emissive_factor())).max(Vec3::ZERO),
+                mirror: pbr.metallic_factor() >= 1.0 && pbr.roughness_factor() <= 0.0,
+            }
+        };
+        if runs.last().is_some_and(|l| l.0 == first) {
+            runs.pop();
+        }
+        if runs.last().is_none_or(|l| l.1 != mat) {
+            runs.push((first, mat));
+        }
     }
 
     fn decode_mesh_counted(&mut self, mesh: &gltf::Mesh) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
@@ -474,6 +511,7 @@ impl<'a> Builder<'a> {
             };
             let n = idx.len();
             let b = base as u32;
+            self.record_material(mesh.index(), tris.len() as u32, &prim);
             let new_tris = match mode {
                 Mode::Triangles => n / 3,
                 _ => n.saturating_sub(2),

@@ -125,8 +125,9 @@ pub fn gunzip(raw: &[u8], file: &str) -> Result<Vec<u8>> {
 }
 
 /// Parses the bytes of a scene file of `format` (already decompressed) into meshes; `file` names
-/// it in errors, `base` is the folder that glTF external buffers are resolved from (`None`:
-/// external buffers are an error, only embedded and GLB buffers load).
+/// it in errors, `base` is the folder that glTF external buffers and OBJ `mtllib` files are
+/// resolved from (`None`: external buffers are an error, only embedded and GLB buffers load, and
+/// OBJ files get no materials).
 pub fn parse_meshes(
     format: Format,
     bytes: &[u8],
@@ -134,7 +135,10 @@ pub fn parse_meshes(
     base: Option<&Path>,
 ) -> Result<Vec<super::Mesh>> {
     match format {
-        Format::Obj => obj::parse(bytes, file),
+        Format::Obj => match base {
+            Some(dir) => obj::parse_with_materials(bytes, file, dir),
+            None => obj::parse(bytes, file),
+        },
         Format::Ply => ply::parse(bytes, file),
         Format::Gltf | Format::Glb => gltf::parse(bytes, file, base),
         Format::Off => off::parse(bytes, file),

@@ -2,9 +2,18 @@
 //!
 //! Supports `v` (optional `w` divisor or RGB colour), `vt`, `vn`, `f` with `v`, `v/vt`,
 //! `v//vn` and `v/vt/vn` corners, negative (relative) indices, polygons of any size, `o`/`g`
-//! names, `usemtl`, CRLF line endings. Materials are ignored: `mtllib` is never opened, so a
-//! missing `.mtl` is not an error. Points (`p`, one-corner `f`) and lines (`l`, two-corner `f`)
-//! produce no triangle.
+//! names, `usemtl`, CRLF line endings. Points (`p`, one-corner `f`) and lines (`l`, two-corner
+//! `f`) produce no triangle.
+//!
+//! **Materials** ([`parse_with_materials`], which [`super::load`] uses): every `mtllib` file is
+//! opened next to the OBJ and read through tobj's MTL parser: `Kd` is the diffuse colour, `Ke`
+//! the emission (so the Cornell box's `light` is an area light), `illum 3` or `illum 5`
+//! (reflection by ray tracing) makes a perfect mirror. A missing `.mtl`, or a `usemtl` naming a
+//! material it lacks, leaves those faces without a material (renderers draw them default grey),
+//! silently: OBJ files are very often shipped without their `.mtl`, and the geometry is still
+//! what the user asked for. A `.mtl` that exists but is malformed is an error naming the `.mtl`
+//! and its line. [`parse`] (bytes only, as the fuzz targets use it) never touches the file
+//! system and reads no material.
 //!
 //! **Triangulation**: polygons are fanned in order, `(v0, v1, v2), (v0, v2, v3), ...`. tobj
 //! 4.0's own `triangulate` gives exactly this for quads and polygons, but it also turns points
@@ -15,7 +24,9 @@
 //! model at every `o`/`g` line that follows faces (it would also split at a `usemtl` that
 //! changes the material, but materials are not loaded here, so `usemtl` never splits), and
 //! appends models in file order with their faces in file order; so meshes in order, faces in
-//! order, is exactly the file order of the faces. A model is named by the `o`/`g` line before
+//! order, is exactly the file order of the faces. Materials do not split meshes either: the
+//! pre-pass records which `usemtl` is active at each triangle, and each mesh gets the runs of
+//! its triangle range. A model is named by the `o`/`g` line before
 //! its faces (`unnamed_object` if none): a file that writes `g name` *after* a group's faces,
 //! as `CornellBox-Original.obj` does for its boxes, gets the previous name on those faces. A file that interleaves groups (`g a`, `g b`, `g a` again) gives three
 //! meshes, two of them named `a`: faces are never regrouped, so primitive id = index of the
@@ -31,13 +42,125 @@
 //! imply).
 
 use crate::error::{Error, Result};
-use crate::scene::Mesh;
+use crate::scene::{Material, Mesh};
 use glam::Vec3;
 use std::borrow::Cow;
+use std::collections::HashMap;
+use std::path::Path;
 
-/// Parses OBJ bytes into meshes, one per tobj model (see the module doc).
+/// Parses OBJ bytes into meshes, one per tobj model (see the module doc); no materials.
 pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
-    let bytes = prepass(bytes, file)?;
+    Ok(parse_inner(bytes, file)?.0)
+}
+
+/// [`parse`], plus the materials of the `mtllib` files found in `base` (the OBJ's folder).
+pub fn parse_with_materials(bytes: &[u8], file: &str, base: &Path) -> Result<Vec<Mesh>> {
+    let (mut meshes, pre) = parse_inner(bytes, file)?;
+    let mut library: HashMap<String, Material> = HashMap::new();
+    for lib in &pre.mtllibs {
+        let path = base.join(lib);
+        let Ok(text) = std::fs::read(&path) else {
+            continue; // a missing .mtl: no materials (see the module doc)
+        };
+        for (name, m) in parse_mtl(&text, &path.display().to_string())? {
+            library.entry(name).or_insert(m);
+        }
+    }
+    if library.is_empty() {
+        return Ok(meshes);
+    }
+    // Triangle `k` (in file order) has material `pre.usemtl[r].1` for the last run r with
+    // `pre.usemtl[r].0 <= k`.
+    let mut first = 0u32;
+    for mesh in &mut meshes {
+        let n = mesh.indices.len() as u32;
+        let runs = &pre.usemtl;
+        let start = runs.partition_point(|r| r.0 <= first).saturating_sub(1);
+        for r in start..runs.len() {
+            let (at, ref name) = runs[r];
+            if at >= first + n {
+                break;
+            }
+            let Some(&m) = library.get(name) else {
+                // An unknown name after a known one: default grey from here on (faces before any
+                // known material keep none).
+                if !mesh.materials.is_empty() {
+                    mesh.materials
+                        .push((at.max(first) - first, Material::default()));
+                }
+                continue;
+            };
+            let local = at.max(first) - first;
+            if mesh.materials.last().is_some_and(|l| l.0 == local) {
+                mesh.materials.pop();
+            }
+            mesh.materials.push((local, m));
+        }
+        first += n;
+    }
+    Ok(meshes)
+}
+
+/// Reads a `.mtl` file's materials (see the module doc): validates every line first, so that
+/// errors name the line, then parses with tobj.
+pub fn parse_mtl(bytes: &[u8], file: &str) -> Result<Vec<(String, Material)>> {
+    for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let at = |msg: String| Error::parse(file, format!("line {}", i + 1), msg);
+        let line = std::str::from_utf8(raw).map_err(|_| at("not valid UTF-8 text".into()))?;
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let numbers = |n: usize, words: std::str::SplitWhitespace| -> Result<()> {
+            let vals: Vec<&str> = words.take(n).collect();
+            if vals.len() < n {
+                return Err(at(format!("{key} needs {n} numbers, found {}", vals.len())));
+            }
+            for v in vals {
+                match v.parse::<f32>() {
+                    Ok(x) if x.is_finite() => {}
+                    _ => return Err(at(format!("{key}: bad number {:?}", short(v)))),
+                }
+            }
+            Ok(())
+        };
+        match key {
+            "Ka" | "Kd" | "Ks" | "Ke" => numbers(3, words)?,
+            "Ns" | "Ni" | "d" => numbers(1, words)?,
+            "illum" => {
+                if words.next().and_then(|w| w.parse::<u8>().ok()).is_none() {
+                    return Err(at("illum needs an illumination model number 0..10".into()));
+                }
+            }
+            "newmtl" if words.next().is_none() => {
+                return Err(at("newmtl without a material name".into()))
+            }
+            k if k.starts_with("map_") || k == "bump" => {
+                if words.next().is_none() {
+                    return Err(at(format!("{k} without a file name")));
+                }
+            }
+            _ => {}
+        }
+    }
+    let (mats, _) = tobj::load_mtl_buf(&mut &bytes[..])
+        .map_err(|e| Error::parse(file, "MTL data", format!("tobj: {e}")))?;
+    let out = mats
+        .into_iter()
+        .map(|m| {
+            let c = |v: Option<[f32; 3]>, d: Vec3| v.map_or(d, Vec3::from_array);
+            let d = Material::default();
+            let mat = Material {
+                diffuse: c(m.diffuse, d.diffuse).clamp(Vec3::ZERO, Vec3::ONE),
+                emission: c(m.emissive, Vec3::ZERO).max(Vec3::ZERO),
+                mirror: matches!(m.illumination_model, Some(3 | 5)),
+            };
+            (m.name, mat)
+        })
+        .collect();
+    Ok(out)
+}
+
+fn parse_inner(bytes: &[u8], file: &str) -> Result<(Vec<Mesh>, Prepass)> {
+    let (bytes, pre) = prepass(bytes, file)?;
     // `..Default::default()` covers tobj's feature-gated fields (merging, reordering) should
     // another crate in the build enable those features.
     #[allow(clippy::needless_update)]
@@ -95,13 +218,23 @@ pub fn parse(bytes: &[u8], file: &str) -> Result<Vec<Mesh>> {
         }
         meshes.push(Mesh::new(model.name, positions, tris));
     }
-    Ok(meshes)
+    Ok((meshes, pre))
+}
+
+/// What the pre-pass learns besides validity: the `mtllib` names and the material runs
+/// (`(first triangle in file order, usemtl name)`).
+#[derive(Default)]
+struct Prepass {
+    mtllibs: Vec<String>,
+    usemtl: Vec<(u32, String)>,
 }
 
 /// Validates every line (see the module doc). Returns the input, or a copy in which `l`
 /// (polyline) lines are blanked out as comments: tobj parses `l a b c` as a polygon face, which
 /// no other reader does.
-fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<Cow<'a, [u8]>> {
+fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<(Cow<'a, [u8]>, Prepass)> {
+    let mut pre = Prepass::default();
+    let mut tris = 0u64; // triangles so far (fanned faces of 3+ corners)
     let mut np = 0i64; // positions so far
     let mut nt = 0i64; // texture coordinates so far
     let mut nn = 0i64; // normals so far
@@ -196,6 +329,8 @@ fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<Cow<'a, [u8]>> {
                     polylines.push(line_start + line.len() - line.trim_start().len());
                 } else if corners == 0 {
                     return Err(at("face without vertices".into()));
+                } else if corners >= 3 {
+                    tris += corners as u64 - 2;
                 }
             }
             // tobj needs a name after a single space.
@@ -208,6 +343,15 @@ fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<Cow<'a, [u8]>> {
             {
                 return Err(at("usemtl without a material name".into()));
             }
+            "usemtl" => {
+                let name = line.split_once(' ').map(|(_, n)| n.trim()).unwrap_or("");
+                let at_tri = tris.min(u32::MAX as u64) as u32;
+                if pre.usemtl.last().is_some_and(|r| r.0 == at_tri) {
+                    pre.usemtl.pop();
+                }
+                pre.usemtl.push((at_tri, name.to_string()));
+            }
+            "mtllib" => pre.mtllibs.extend(words.map(str::to_string)),
             _ => {}
         }
         if np > u32::MAX as i64 {
@@ -218,13 +362,13 @@ fn prepass<'a>(bytes: &'a [u8], file: &str) -> Result<Cow<'a, [u8]>> {
         return Err(Error::parse(file, "line 1", "empty file"));
     }
     if polylines.is_empty() {
-        return Ok(Cow::Borrowed(bytes));
+        return Ok((Cow::Borrowed(bytes), pre));
     }
     let mut copy = bytes.to_vec();
     for o in polylines {
         copy[o] = b'#';
     }
-    Ok(Cow::Owned(copy))
+    Ok((Cow::Owned(copy), pre))
 }
 
 fn short(s: &str) -> String {

@@ -1,0 +1,299 @@
+//! Renderers on the shared Cornell box (materials from its `.mtl`, the ceiling light as an area
+//! light): the same seed gives the same radiance bit for bit whatever the tracer and the thread
+//! count; next-event estimation agrees with distribution ray tracing's direct light; the default
+//! ray-cast image shows the red and green walls lit by the ceiling light; distribution ray
+//! tracing traces exactly N² shadow rays per light per primary hit, as origin grids.
+
+use glam::Vec3;
+use raysift::rays::Camera;
+use raysift::render::distribution::{distribution, DistConfig};
+use raysift::render::light::{AreaLight, Lights};
+use raysift::render::path::{path_trace_lit, PathConfig};
+use raysift::{tracers, Scene, Tracer};
+use std::path::Path;
+
+fn cornell() -> Option<Scene> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/scenes/CornellBox-Original.obj");
+    if !p.exists() {
+        println!("SKIPPED: {} not found", p.display());
+        return None;
+    }
+    Some(raysift::scene::load(p).unwrap())
+}
+
+fn tracer(name: &str, s: &Scene) -> Box<dyn Tracer> {
+    let mut t = tracers::create(name, &[]).unwrap();
+    t.prepare(s).unwrap();
+    t
+}
+
+fn camera(s: &Scene, w: u32, h: u32) -> Camera {
+    Camera::framing(&s.bounds(), Camera::DEFAULT_FOV, w as f32 / h as f32)
+}
+
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|c| c.to_array().map(f32::to_bits)).collect()
+}
+
+fn mean(v: &[Vec3]) -> Vec3 {
+    v.iter().sum::<Vec3>() / v.len() as f32
+}
+
+#[test]
+fn same_seed_same_image_for_every_tracer_and_thread_count() {
+    let Some(s) = cornell() else { return };
+    let (w, h) = (24, 24);
+    let cam = camera(&s, w, h);
+    let lights = Lights::new(
+        &s,
+        vec![AreaLight::square(Vec3::new(0.0, 1.5, 0.0), 0.3, 2.0, "x").unwrap()],
+    );
+    let pc = PathConfig {
+        spp: 2,
+        bounces: 3,
+        seed: 7,
+        ..Default::default()
+    };
+    let dc = DistConfig {
+        aa: 2,
+        light_side: 3,
+        bounce_side: 2,
+        seed: 7,
+    };
+    let render = |name: &str, threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let t = tracer(name, &s);
+            let p = path_trace_lit(&s, t.as_ref(), &cam, w, h, &pc, &lights)
+                .unwrap()
+                .0;
+            let d = distribution(&s, t.as_ref(), &cam, w, h, &lights, &dc)
+                .unwrap()
+                .0;
+            (bits(&p), bits(&d))
+        })
+    };
+    let want = render("naive", 1);
+    assert!(
+        mean(
+            &want
+                .0
+                .iter()
+                .map(|b| Vec3::from_array(b.map(f32::from_bits)))
+                .collect::<Vec<_>>()
+        )
+        .max_element()
+            > 0.01
+    );
+    for (name, threads) in [("naive", 2), ("bvh", 1), ("bvh", 2), ("dacrt", 2)] {
+        let got = render(name, threads);
+        assert!(
+            got.0 == want.0,
+            "path: {name} on {threads} threads differs from naive"
+        );
+        assert!(
+            got.1 == want.1,
+            "distribution: {name} on {threads} threads differs from naive"
+        );
+    }
+    // Another seed, another image (the seed is used).
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let other = pool.install(|| {
+        let t = tracer("naive", &s);
+        bits(
+            &path_trace_lit(
+                &s,
+                t.as_ref(),
+                &cam,
+                w,
+                h,
+                &PathConfig { seed: 8, ..pc },
+                &lights,
+            )
+            .unwrap()
+            .0,
+        )
+    });
+    assert!(other != want.0);
+}
+
+#[test]
+fn next_event_estimation_agrees_with_distribution_direct_light() {
+    let Some(s) = cornell() else { return };
+    let (w, h) = (32, 32);
+    let cam = camera(&s, w, h);
+    let t = tracer("bvh", &s);
+    let lights = Lights::of_scene(&s);
+    assert_eq!(lights.lights.len(), 1, "the ceiling light");
+    // Direct light only: path with no bounce (one NEE sample per hit) vs 8×8 light samples.
+    let pc = PathConfig {
+        spp: 32,
+        bounces: 0,
+        seed: 3,
+        ..Default::default()
+    };
+    let p = mean(
+        &path_trace_lit(&s, t.as_ref(), &cam, w, h, &pc, &lights)
+            .unwrap()
+            .0,
+    );
+    let dc = DistConfig {
+        aa: 1,
+        light_side: 8,
+        bounce_side: 0,
+        seed: 3,
+    };
+    let d = mean(
+        &distribution(&s, t.as_ref(), &cam, w, h, &lights, &dc)
+            .unwrap()
+            .0,
+    );
+    for c in 0..3 {
+        assert!(
+            (p[c] / d[c] - 1.0).abs() < 0.04,
+            "channel {c}: path {p} vs distribution {d}"
+        );
+    }
+    // Indirect light adds (the ceiling is lit only by bounces).
+    let full = mean(
+        &path_trace_lit(
+            &s,
+            t.as_ref(),
+            &cam,
+            w,
+            h,
+            &PathConfig {
+                bounces: 3,
+                spp: 8,
+                ..pc
+            },
+            &lights,
+        )
+        .unwrap()
+        .0,
+    );
+    assert!(full.min_element() > 1.1 * p.min_element(), "{full} vs {p}");
+}
+
+#[test]
+fn default_render_shows_coloured_walls_lit_by_the_ceiling_light() {
+    let Some(s) = cornell() else { return };
+    let (w, h) = (48, 48);
+    let cam = camera(&s, w, h);
+    let t = tracer("bvh", &s);
+    let (img, st) = raysift::render::raycast(
+        &s,
+        t.as_ref(),
+        &cam,
+        w,
+        h,
+        raysift::render::Shade::Diffuse,
+        None,
+    )
+    .unwrap();
+    let px = |x: u32, y: u32| {
+        let k = 3 * (y * w + x) as usize;
+        Vec3::new(
+            img.rgb[k] as f32,
+            img.rgb[k + 1] as f32,
+            img.rgb[k + 2] as f32,
+        )
+    };
+    let (left, right) = (px(w / 12, h / 2), px(w - 1 - w / 12, h / 2));
+    assert!(
+        left.x > 2.0 * left.y && left.x > 60.0,
+        "left wall red: {left}"
+    );
+    assert!(
+        right.y > 1.3 * right.x && right.y > 2.0 * right.z && right.y > 50.0,
+        "right wall green: {right}"
+    );
+    // 4×4 shadow samples per primary hit and light.
+    assert_eq!(st.shadow.unwrap().rays, 16 * st.hits);
+}
+
+#[test]
+fn distribution_shadow_rays_are_n2_per_primary_hit() {
+    let s = raysift::scene::default_scene().unwrap();
+    let (w, h) = (32, 32);
+    let cam = camera(&s, w, h);
+    let t = tracer("bvh", &s);
+    let b = s.bounds();
+    let top = Vec3::new(b.center().x, b.max.y + b.extent().y, b.center().z);
+    let lights = Lights::new(
+        &s,
+        vec![AreaLight::square(top, b.extent().x * 0.5, 1.0, "x").unwrap()],
+    );
+    let (rad, ph) = distribution(
+        &s,
+        t.as_ref(),
+        &cam,
+        w,
+        h,
+        &lights,
+        &DistConfig {
+            light_side: 5,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(ph[0].rays, (w * h) as u64);
+    assert!(ph[0].hits > 100);
+    assert_eq!(ph[2].rays, 25 * ph[0].hits);
+    // Soft shadows: some pixels partly blocked (neither 0 nor all of the 25 samples).
+    assert!(ph[2].hits > 0 && ph[2].hits < ph[2].rays);
+    assert!(mean(&rad).max_element() > 0.0);
+}
+
+#[test]
+fn instant_radiosity_agrees_with_path_tracing_and_every_tracer() {
+    use raysift::render::radiosity::{instant_radiosity, IrConfig};
+    let Some(s) = cornell() else { return };
+    let (w, h) = (16, 16);
+    let cam = camera(&s, w, h);
+    let lights = Lights::of_scene(&s);
+    let cfg = IrConfig {
+        vpls: 600,
+        bounces: 1,
+        subset: 600,
+        clamp: 0.02,
+        seed: 5,
+    };
+    let t = tracer("bvh", &s);
+    let (ir, nv, ph) = instant_radiosity(&s, t.as_ref(), &cam, w, h, &lights, &cfg).unwrap();
+    assert!(nv > 400 && nv <= 600, "{nv} VPLs");
+    assert_eq!(ph[0].rays, 300, "photons = vpls / (bounces + 1)");
+    assert_eq!(
+        ph[3].rays,
+        nv as u64 * ph[2].hits,
+        "every camera hit to every VPL"
+    );
+    // Indirect light adds: more VPLs bounced, a brighter image (no energy comparison with the
+    // path tracer yet: see the module doc of render::radiosity, a known deficit).
+    let direct = instant_radiosity(
+        &s,
+        t.as_ref(),
+        &cam,
+        w,
+        h,
+        &lights,
+        &IrConfig { bounces: 0, ..cfg },
+    )
+    .unwrap()
+    .0;
+    assert!(mean(&ir).min_element() > 1.1 * mean(&direct).min_element());
+    for name in ["naive", "dacrt"] {
+        let t = tracer(name, &s);
+        let got = instant_radiosity(&s, t.as_ref(), &cam, w, h, &lights, &cfg)
+            .unwrap()
+            .0;
+        assert!(bits(&got) == bits(&ir), "{name} differs from bvh");
+    }
+}
