@@ -185,7 +185,9 @@ pub struct Playback {
     skin_changed: Vec<bool>,
     /// Per skinned mesh: the positions buffer to fill next.
     spare: Vec<Vec<Vec3>>,
-    started: bool,
+    /// The scene written last, as it was after the write: a pose applied to another scene (or
+    /// to this one after someone else changed it) writes every mesh, not just what moved.
+    last: crate::scene::Stamp,
 }
 
 impl Playback {
@@ -221,7 +223,7 @@ impl Playback {
             skins,
             skinned,
             rigid,
-            started: false,
+            last: crate::scene::Stamp::default(),
         };
         p.select_index(0);
         Ok(p)
@@ -356,7 +358,7 @@ impl Playback {
             for (j, (&node, ibm)) in skin.joints.iter().zip(&skin.inverse_bind).enumerate() {
                 joint[j] = Affine3A::from_mat4(self.global[node] * *ibm);
             }
-            self.skin_changed[s] = !self.started || joint != &self.joint_prev[s];
+            self.skin_changed[s] = joint != &self.joint_prev[s];
             self.joint_prev[s].copy_from_slice(joint);
         }
     }
@@ -364,17 +366,21 @@ impl Playback {
     /// Hands the pose to the scene: skinned meshes deformed, rigid meshes moved, each only when
     /// it changed.
     fn write(&mut self, scene: &mut Scene) -> Result<()> {
+        // Another scene than the one written last, or this one changed since by someone else:
+        // everything is written (a pose is a function of the time alone, whatever the scene held).
+        let fresh = self.last.check(scene, "playback").is_err();
         let (joint, changed) = (&self.joint, &self.skin_changed);
+        let write = |s: &Skinned| fresh || changed[s.skin];
         self.skinned
             .par_iter()
             .zip(self.spare.par_iter_mut())
-            .filter(|(s, _)| changed[s.skin])
+            .filter(|(s, _)| write(s))
             .for_each(|(s, out)| skin_into(s, &joint[s.skin], out));
         for (s, out) in self.skinned.iter().zip(self.spare.iter_mut()) {
-            if !changed[s.skin] {
+            if !write(s) {
                 continue;
             }
-            if !self.started && scene.meshes()[s.mesh].transform != Affine3A::IDENTITY {
+            if scene.meshes()[s.mesh].transform != Affine3A::IDENTITY {
                 scene.set_transform(s.mesh, Affine3A::IDENTITY)?;
             }
             *out = scene.replace_positions(s.mesh, std::mem::take(out))?;
@@ -385,7 +391,7 @@ impl Playback {
                 scene.set_transform(m, xf)?;
             }
         }
-        self.started = true;
+        self.last = scene.stamp();
         Ok(())
     }
 }
