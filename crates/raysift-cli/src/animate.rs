@@ -8,18 +8,26 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use raysift::render::{self, Shade};
 use raysift::scene::animate::{Animation, Motion};
-use raysift::scene::{Change, Stamp};
-use std::path::PathBuf;
+use raysift::scene::io::gltf_anim::load_animated;
+use raysift::scene::io::Format;
+use raysift::scene::{Change, Scene, Stamp};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
 pub struct AnimateArgs {
     /// Scene file or generator; the embedded bunny when omitted.
     scene: Option<String>,
-    /// Motion: explode (triangles fly apart) or spin-parts (meshes rotate rigidly).
-    #[arg(long, default_value = "explode")]
-    motion: Motion,
-    /// Number of frames (time runs from 0 to 1 over them).
+    /// Motion: explode (triangles fly apart), spin-parts (meshes rotate rigidly) or gltf (the
+    /// file's own animation: keyframed nodes, skinning). Default: gltf for a .gltf/.glb file
+    /// with animations, explode otherwise.
+    #[arg(long)]
+    motion: Option<Motion>,
+    /// The glTF animation to play, by name or index (default: the first).
+    #[arg(long)]
+    animation: Option<String>,
+    /// Number of frames (explode, spin-parts: time runs from 0 to 1 over them; gltf: frame f
+    /// is at f · duration / frames seconds).
     #[arg(long, default_value_t = 8)]
     frames: u32,
     /// Output folder for frame_NNNN.png (created if missing; not needed with --no-images).
@@ -37,11 +45,47 @@ pub struct AnimateArgs {
     pub tracer: TracerArgs,
 }
 
-fn motion_name(m: Motion) -> &'static str {
-    match m {
-        Motion::Explode => "explode",
-        Motion::SpinParts => "spin-parts",
+/// Whether `spec` names a glTF file (its own animation can be played).
+fn is_gltf(spec: &str) -> bool {
+    matches!(
+        raysift::scene::io::detect_format(Path::new(spec)),
+        Ok((Format::Gltf | Format::Glb, _))
+    )
+}
+
+/// The animation of the arguments: the file's own (gltf motion), or a generated motion of the
+/// scene; everything is checked before any frame is made.
+fn open_animation(a: &AnimateArgs) -> Result<(Scene, Animation)> {
+    if let Some(spec) = a.scene.as_deref().filter(|s| is_gltf(s)) {
+        if a.motion.is_none_or(|m| m == Motion::Gltf) {
+            let (scene, playback) = load_animated(spec)?;
+            match playback {
+                Some(p) => {
+                    let mut anim = Animation::from_playback(scene.clone(), p);
+                    if let Some(which) = &a.animation {
+                        anim.select(which)?;
+                    }
+                    return Ok((scene, anim));
+                }
+                None if a.motion == Some(Motion::Gltf) => {
+                    bail!("{spec}: the file has no animations (--motion gltf)")
+                }
+                None if a.animation.is_some() => bail!("{spec}: the file has no animations (--animation)"),
+                None => {
+                    let anim = Animation::new(&scene, Motion::Explode)?;
+                    return Ok((scene, anim));
+                }
+            }
+        }
+    } else if a.motion == Some(Motion::Gltf) {
+        bail!("--motion gltf plays a .gltf or .glb file's animation; give such a file");
     }
+    if a.animation.is_some() {
+        bail!("--animation chooses a glTF file's animation; it needs the gltf motion");
+    }
+    let base = open_scene_or_default(a.scene.as_deref())?;
+    let anim = Animation::new(&base, a.motion.unwrap_or(Motion::Explode))?;
+    Ok((base, anim))
 }
 
 pub fn run(a: &AnimateArgs) -> Result<()> {
@@ -52,10 +96,13 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
         bail!("--width and --height must be positive");
     }
     let mut tracer = make_tracer(&a.tracer)?;
-    let base = open_scene_or_default(a.scene.as_deref())?;
-    let mut anim = Animation::new(&base, a.motion)?;
-    // Frame the whole motion: the union of the first and last frames' bounds.
-    let bounds = anim.at(0.0)?.bounds().union(anim.at(1.0)?.bounds());
+    let (base, mut anim) = open_animation(a)?;
+    // Frame the whole motion: the union of the bounds of a few frames across it.
+    let mut bounds = anim.at(anim.frame_time(0, a.frames))?.bounds();
+    for k in 1..=8 {
+        let t = anim.frame_time(k * a.frames.saturating_sub(1) / 8, a.frames);
+        bounds = bounds.union(anim.at(t)?.bounds());
+    }
     let cam = camera_for(&bounds, &a.view)?;
     // The folder for the frames, None with --no-images (clap demands --out otherwise).
     let out = a.out.as_ref().filter(|_| !a.no_images);
@@ -68,11 +115,7 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
     // The scene as the tracer was last prepared for it.
     let mut prepared: Option<Stamp> = None;
     for k in 0..a.frames {
-        let t = if a.frames == 1 {
-            0.0
-        } else {
-            k as f32 / (a.frames - 1) as f32
-        };
+        let t = anim.frame_time(k, a.frames);
         let u0 = Instant::now();
         let scene = anim.at(t)?;
         let update_ms = u0.elapsed().as_secs_f64() * 1e3;
@@ -118,7 +161,9 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
             scene: base.name.clone(),
             triangles: base.len(),
             tracer: tracer.name(),
-            motion: motion_name(a.motion),
+            motion: anim.motion().name(),
+            animation: anim.playback().map(|p| p.clip().name.clone()),
+            duration_s: anim.playback().map(|p| p.clip().duration),
             meshes: anim.scene().meshes().len(),
             width: a.view.width,
             height: a.view.height,
@@ -130,9 +175,12 @@ pub fn run(a: &AnimateArgs) -> Result<()> {
             frames,
         });
     }
+    let moved = frames.iter().map(|f| f.moved).max().unwrap_or(0);
+    let deformed = frames.iter().map(|f| f.deformed).max().unwrap_or(0);
     eprintln!(
-        "{} frames with {}: mean prepare {p:.1} ms + trace {t:.1} ms = {f:.1} ms per frame",
+        "{} frames of {} with {}: up to {moved} meshes moved and {deformed} deformed per frame; mean animation {u:.1} ms, prepare {p:.1} ms + trace {t:.1} ms = {f:.1} ms per frame",
         a.frames,
+        anim.playback().map_or(anim.motion().name(), |p| p.clip().name.as_str()),
         tracer.name()
     );
     Ok(())

@@ -187,7 +187,7 @@ pub struct PathReport {
 #[derive(Serialize)]
 pub struct FrameReport {
     pub frame: u32,
-    /// Animation time, 0 to 1.
+    /// Animation time: 0 to 1 (explode, spin-parts), seconds (gltf).
     pub time: f32,
     /// What changed since the previous frame (what the tracer's prepare was told):
     /// `all` (the first frame: never prepared), `none`, or `meshes` (see `moved`, `deformed`).
@@ -215,6 +215,9 @@ pub struct AnimateReport {
     pub triangles: usize,
     pub tracer: &'static str,
     pub motion: &'static str,
+    /// The glTF animation played (motion `gltf`), and its length in seconds.
+    pub animation: Option<String>,
+    pub duration_s: Option<f32>,
     /// Meshes of the animated scene (spin-parts splits a single mesh into octant parts).
     pub meshes: usize,
     pub width: u32,

@@ -631,3 +631,43 @@ fn trace_json_times_once_medians_at_the_top_counters_under_stats() {
     assert!(st["work"]["ray_tri"].as_u64().unwrap() > 0);
     assert!(st["built"]["nodes"].as_u64().unwrap() > 0);
 }
+
+/// Writes the hand-built animated rig (`raysift::testkit::gltf_rig`) as `name` in `dir`.
+fn write_rig(dir: &Path, name: &str, rig: &raysift::testkit::gltf_rig::Rig) -> String {
+    let path = p(dir, name);
+    std::fs::write(&path, rig.glb()).unwrap();
+    path
+}
+
+#[test]
+fn animate_plays_a_gltf_animation() {
+    let d = tmp();
+    let rig = write_rig(d.path(), "rig.glb", &raysift::testkit::gltf_rig::Rig::new());
+    let out = p(d.path(), "frames");
+    let o = ok(&[
+        "animate", &rig, "--frames", "4", "--tracer", "bvh", "--width", "24", "--height", "16",
+        "--out", &out, "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["motion"], "gltf");
+    assert_eq!(v["animation"], "wave");
+    assert_eq!(v["duration_s"], 2.0);
+    let frames = v["frames"].as_array().unwrap();
+    // Frame f at f · 2 s / 4: 0, 0.5, 1, 1.5 s.
+    let times: Vec<f64> = frames.iter().map(|f| f["time"].as_f64().unwrap()).collect();
+    assert_eq!(times, [0.0, 0.5, 1.0, 1.5]);
+    // The quad deforms every frame; the STEP-rotated triangle moves only at 1 s.
+    let md: Vec<(u64, u64)> = frames[1..]
+        .iter()
+        .map(|f| (f["moved"].as_u64().unwrap(), f["deformed"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(md, [(0, 1), (1, 1), (0, 1)]);
+    assert!(d.path().join("frames/frame_0003.png").exists());
+    // By index, and the explode motion still plays on the same file.
+    ok(&["animate", &rig, "--animation", "0", "--frames", "2", "--no-images"]);
+    let o = ok(&[
+        "animate", &rig, "--motion", "explode", "--frames", "2", "--no-images", "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["motion"], "explode");
+}

@@ -8,7 +8,13 @@
 //!   centroids share an octant of the bounds) rotates rigidly about its own centre at its own rate,
 //!   through the meshes' transforms.
 //!
-//! Primitive ids stay those of the source scene in both motions.
+//! - `gltf`: the file's own animation (keyframed nodes and skinning), played by
+//!   [`playback::Playback`] from [`crate::scene::io::gltf_anim::load_animated`]; skinned meshes
+//!   deform, other meshes under animated nodes move rigidly.
+//!
+//! Primitive ids stay those of the source scene in every motion.
+
+pub mod playback;
 
 use super::{Mesh, Scene};
 use crate::error::{Error, Result};
@@ -22,6 +28,19 @@ pub enum Motion {
     Explode,
     /// Meshes rotate rigidly.
     SpinParts,
+    /// The glTF file's own animation ([`Animation::from_playback`]).
+    Gltf,
+}
+
+impl Motion {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Motion::Explode => "explode",
+            Motion::SpinParts => "spin-parts",
+            Motion::Gltf => "gltf",
+        }
+    }
 }
 
 impl std::str::FromStr for Motion {
@@ -30,8 +49,9 @@ impl std::str::FromStr for Motion {
         match s {
             "explode" => Ok(Motion::Explode),
             "spin-parts" => Ok(Motion::SpinParts),
+            "gltf" => Ok(Motion::Gltf),
             _ => Err(Error::Invalid(format!(
-                "unknown motion {s:?}; expected explode or spin-parts"
+                "unknown motion {s:?}; expected explode, spin-parts or gltf"
             ))),
         }
     }
@@ -50,6 +70,8 @@ pub struct Animation {
     mesh_part: Vec<usize>,
     /// Explode: the positions buffer of the frame before last, reused for the next frame.
     spare: Vec<Vec3>,
+    /// Gltf: the file's animation.
+    playback: Option<playback::Playback>,
 }
 
 impl Animation {
@@ -103,6 +125,7 @@ impl Animation {
                     parts: Vec::new(),
                     mesh_part: Vec::new(),
                     spare: Vec::new(),
+                    playback: None,
                 })
             }
             Motion::SpinParts => {
@@ -140,17 +163,74 @@ impl Animation {
                     parts,
                     mesh_part,
                     spare: Vec::new(),
+                    playback: None,
                 })
             }
+            Motion::Gltf => Err(Error::Invalid(format!(
+                "{}: the gltf motion plays a glTF file's own animation (load it with scene::io::gltf_anim::load_animated)",
+                scene.name
+            ))),
         }
     }
 
-    /// The scene at time `t` (t = 0: rest pose; t = 1: a well-developed motion), changed in
-    /// place: `explode` deforms its one mesh ([`Scene::replace_positions`], into a buffer kept
-    /// between frames), `spin-parts` moves each mesh rigidly ([`Scene::set_transform`]); the
+    /// Plays a glTF file's animation on the scene loaded with it
+    /// ([`crate::scene::io::gltf_anim::load_animated`]).
+    pub fn from_playback(scene: Scene, playback: playback::Playback) -> Self {
+        Self {
+            motion: Motion::Gltf,
+            scene,
+            rest: Vec::new(),
+            velocity: Vec::new(),
+            axis: Vec::new(),
+            parts: Vec::new(),
+            mesh_part: Vec::new(),
+            spare: Vec::new(),
+            playback: Some(playback),
+        }
+    }
+
+    /// The motion.
+    pub fn motion(&self) -> Motion {
+        self.motion
+    }
+
+    /// The glTF animation being played (the gltf motion only).
+    pub fn playback(&self) -> Option<&playback::Playback> {
+        self.playback.as_ref()
+    }
+
+    /// Chooses the glTF animation by name or index (the gltf motion only).
+    pub fn select(&mut self, which: &str) -> Result<()> {
+        match &mut self.playback {
+            Some(p) => p.select(which),
+            None => Err(Error::Invalid(format!(
+                "--animation {which:?}: only the gltf motion plays a file's animations"
+            ))),
+        }
+    }
+
+    /// The time [`Animation::at`] takes for frame `k` of `n`: `k / (n - 1)` (0 to 1 inclusive)
+    /// for the generated motions, `k · duration / n` seconds for a glTF animation (the last
+    /// frame stops one step short of the first, so a looping clip loops seamlessly).
+    pub fn frame_time(&self, k: u32, n: u32) -> f32 {
+        match &self.playback {
+            Some(p) => k as f32 * p.clip().duration / n.max(1) as f32,
+            None if n <= 1 => 0.0,
+            None => k as f32 / (n - 1) as f32,
+        }
+    }
+
+    /// The scene at time `t` (t = 0: rest pose; t = 1: a well-developed motion; for `gltf`, `t`
+    /// is in seconds of the clip), changed in place: `explode` deforms its one mesh
+    /// ([`Scene::replace_positions`], into a buffer kept between frames), `spin-parts` moves
+    /// each mesh rigidly ([`Scene::set_transform`]), `gltf` does both (see [`playback`]); the
     /// scene's [`changes_since`](Scene::changes_since) says which.
     pub fn at(&mut self, t: f32) -> Result<&Scene> {
         match self.motion {
+            Motion::Gltf => {
+                let p = self.playback.as_mut().expect("made by from_playback");
+                p.apply(&mut self.scene, t)?;
+            }
             Motion::Explode => {
                 let mut pos = std::mem::take(&mut self.spare);
                 pos.clear();

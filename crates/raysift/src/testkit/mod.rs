@@ -4,6 +4,7 @@
 //! outside raysift can be held to the same contract.
 
 pub mod adversarial;
+pub mod gltf_rig;
 pub mod soak;
 
 use crate::rays::{HitBatch, RayBatch};

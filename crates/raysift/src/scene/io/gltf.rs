@@ -7,7 +7,8 @@
 //! transform (parents composed). Modes: TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (converted
 //! with the spec's vertex order: strip `i` is `(i, i+1, i+2)` for even `i` and `(i, i+2, i+1)`
 //! for odd `i`, fan `i` is `(i+1, i+2, 0)`); POINTS and LINES are skipped. Indexed and
-//! non-indexed primitives, sparse accessors. Skins and morph targets are ignored.
+//! non-indexed primitives, sparse accessors. Skins and morph targets are ignored here (the bind
+//! pose is loaded); `gltf_anim.rs` plays animations and skins on top of [`parse_full`].
 //!
 //! Why the crate and where not: `gltf` parses and validates the JSON (references, enums) and
 //! resolves buffers (data URIs, external files, the GLB `BIN` chunk). But some of its own code
@@ -43,6 +44,20 @@ use std::path::Path;
 
 /// Parses glTF (`.gltf` JSON or `.glb`) bytes into meshes; `base` resolves external buffers.
 pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>> {
+    parse_full(bytes, file, base).map(|p| p.meshes)
+}
+
+/// A parsed file as the animation reader (`gltf_anim.rs`) needs it: the meshes, the node each
+/// mesh came from, the validated document and its buffers.
+pub(super) struct Parsed {
+    pub meshes: Vec<Mesh>,
+    pub nodes: Vec<usize>,
+    pub doc: gltf::Document,
+    pub buffers: Vec<gltf::buffer::Data>,
+}
+
+/// [`parse`], keeping what [`Parsed`] holds.
+pub(super) fn parse_full(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Parsed> {
     if bytes.iter().all(|b| b.is_ascii_whitespace()) {
         return Err(Error::parse(file, "byte 0", "empty file"));
     }
@@ -103,7 +118,42 @@ pub fn parse(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Vec<Mesh>>
     for roots in traversals {
         builder.traverse(roots, doc.nodes().len())?;
     }
-    Ok(builder.finish())
+    let (meshes, nodes) = builder.finish();
+    Ok(Parsed {
+        meshes,
+        nodes,
+        doc,
+        buffers,
+    })
+}
+
+/// The modes the loader turns into triangles (the others are skipped).
+pub(super) fn is_triangles(mode: Mode) -> bool {
+    matches!(
+        mode,
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    )
+}
+
+/// The bytes of every element of `acc` (`elem` bytes each, sparse substitution applied), each
+/// bounds-checked as the mesh decoder's are; for the animation reader.
+pub(super) fn accessor_elements<'a>(
+    file: &'a str,
+    buffers: &'a [gltf::buffer::Data],
+    acc: &gltf::Accessor,
+    elem: usize,
+) -> Result<Vec<&'a [u8]>> {
+    let b = Builder {
+        file,
+        buffers,
+        cache: HashMap::new(),
+        materials: HashMap::new(),
+        pending: Vec::new(),
+        mem: None,
+        vertices: 0,
+        triangles: 0,
+    };
+    Ok(b.gather(acc, elem)?.iter().map(|e| e.bytes).collect())
 }
 
 /// Splits a GLB container into its JSON chunk and optional BIN chunk (spec section 4.4).
@@ -323,8 +373,8 @@ struct Builder<'a> {
     cache: HashMap<usize, (Vec<Vec3>, Vec<[u32; 3]>)>,
     /// Material runs of each decoded mesh (see [`Builder::record_material`]).
     materials: HashMap<usize, Vec<(u32, Material)>>,
-    /// Instances to build: mesh name, glTF mesh index, world transform.
-    pending: Vec<(String, usize, Mat4)>,
+    /// Instances to build: mesh name, glTF mesh index, world transform, node index.
+    pending: Vec<(String, usize, Mat4, usize)>,
     /// Available memory, read once ([`limits::mem_available`]).
     mem: Option<u64>,
     /// Vertices and triangles decoded or instanced so far (the budget in the module doc).
@@ -415,16 +465,17 @@ impl<'a> Builder<'a> {
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("mesh {}", mesh.index()));
             self.pending
-                .push((format!("{node_name}/{mesh_name}"), mesh.index(), world));
+                .push((format!("{node_name}/{mesh_name}"), mesh.index(), world, node.index()));
         }
         Ok(())
     }
 
     /// The instances as meshes, in traversal order. Called after every instance has been
     /// counted against the budget, so nothing is copied for a scene that is refused.
-    fn finish(mut self) -> Vec<Mesh> {
+    fn finish(mut self) -> (Vec<Mesh>, Vec<usize>) {
         let mut out = Vec::with_capacity(self.pending.len());
-        for (name, mesh, world) in std::mem::take(&mut self.pending) {
+        let mut nodes = Vec::with_capacity(self.pending.len());
+        for (name, mesh, world, node) in std::mem::take(&mut self.pending) {
             let (positions, indices) = &self.cache[&mesh];
             let mut m = Mesh::new(name, positions.clone(), indices.clone());
             m.transform = Affine3A::from_mat4(world);
@@ -432,8 +483,9 @@ impl<'a> Builder<'a> {
             // A trailing run past the last triangle (a material on a primitive with none).
             m.materials.retain(|r| (r.0 as usize) < m.indices.len());
             out.push(m);
+            nodes.push(node);
         }
-        out
+        (out, nodes)
     }
 
     /// Decodes a mesh's triangle primitives. Its triangles are counted against the budget as
@@ -482,10 +534,7 @@ impl<'a> Builder<'a> {
         let mut tris = Vec::new();
         for prim in mesh.primitives() {
             let mode = prim.mode();
-            if !matches!(
-                mode,
-                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-            ) {
+            if !is_triangles(mode) {
                 continue;
             }
             let place = |what: &str| {
@@ -660,7 +709,8 @@ impl<'a> Builder<'a> {
                 None
             }
         };
-        const ZEROS: [u8; 16] = [0; 16];
+        // Up to a MAT4 of f32 (the animation reader's inverse bind matrices).
+        const ZEROS: [u8; 64] = [0; 64];
         let mut g = Gathered {
             base,
             count,
@@ -867,7 +917,7 @@ impl<'a> Strided<'a> {
 }
 
 #[inline]
-fn read_uint(b: &[u8]) -> u32 {
+pub(super) fn read_uint(b: &[u8]) -> u32 {
     match b.len() {
         1 => b[0] as u32,
         2 => u16::from_le_bytes([b[0], b[1]]) as u32,

@@ -8,6 +8,7 @@
 //! through [`load_bytes`].
 
 pub mod gltf;
+pub mod gltf_anim;
 pub mod limits;
 pub mod obj;
 pub mod off;
