@@ -151,12 +151,33 @@ pub fn check_tracer(
     Ok(())
 }
 
-/// Checks every registered tracer but `naive`, in its defaults and every preset it declares,
-/// against `naive` on `scene` and `rays` ([`check_tracer`]); returns the first failure.
+/// The tracers the checks compare with `naive`: every registered one but `naive`, or, when
+/// `RAYSIFT_CHECK_TRACERS` holds a comma-separated list of names, those only (CI reruns the
+/// suite on DACRT's four-lane path with `RAYSIFT_CHECK_TRACERS=dacrt`: the only tracer on
+/// `geom::Lanes`). An unknown name in the list panics, so a typo cannot check nothing.
+pub fn contenders() -> Vec<&'static tracers::Entry> {
+    let all = tracers::REGISTRY.iter().filter(|e| e.name != "naive");
+    match std::env::var("RAYSIFT_CHECK_TRACERS") {
+        Ok(list) if !list.trim().is_empty() => {
+            let names: Vec<&str> = list.split(',').map(str::trim).collect();
+            for n in &names {
+                assert!(
+                    tracers::REGISTRY.iter().any(|e| e.name == *n),
+                    "RAYSIFT_CHECK_TRACERS: unknown tracer {n:?}"
+                );
+            }
+            all.filter(|e| names.contains(&e.name)).collect()
+        }
+        _ => all.collect(),
+    }
+}
+
+/// Checks every registered tracer but `naive` ([`contenders`]), in its defaults and every preset
+/// it declares, against `naive` on `scene` and `rays` ([`check_tracer`]); returns the first failure.
 pub fn check_all(scene: &Scene, rays: &RayBatch) -> Result<(), String> {
     let want = Oracle::new(scene, rays);
     let mut scene = scene.clone();
-    for entry in tracers::REGISTRY.iter().filter(|e| e.name != "naive") {
+    for entry in contenders() {
         check_tracer(entry, &[], &mut scene, rays, &want)?;
         for p in entry.presets {
             check_tracer(entry, &tracers::preset_opts(p), &mut scene, rays, &want)
@@ -177,7 +198,7 @@ pub fn check_animation(
     rays: &RayBatch,
 ) -> Result<(), String> {
     let mut configs = Vec::new();
-    for entry in tracers::REGISTRY.iter().filter(|e| e.name != "naive") {
+    for entry in contenders() {
         configs.push((entry, Vec::new(), "defaults"));
         for p in entry.presets {
             configs.push((entry, tracers::preset_opts(p), p.name));
