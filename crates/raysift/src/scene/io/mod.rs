@@ -9,6 +9,7 @@
 
 pub mod gltf;
 pub mod gltf_anim;
+mod gltf_container;
 pub mod limits;
 pub mod obj;
 pub mod off;
