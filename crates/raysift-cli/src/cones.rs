@@ -14,6 +14,8 @@ use std::time::Instant;
 enum StructureArg {
     /// The shared binned-SAH BVH (32 bins, at most 8 triangles per leaf, as the paper).
     Bvh,
+    /// The shared SAH kd-tree (pbrt-v3's build parameters, as the paper).
+    Kdtree,
     /// Brute force: every triangle, the exact test (the ground truth).
     Oracle,
 }
@@ -128,6 +130,7 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
     }
     let structure = match a.structure {
         StructureArg::Bvh => Structure::Bvh,
+        StructureArg::Kdtree => Structure::Kdtree,
         StructureArg::Oracle => Structure::Oracle,
     };
     let traversal = match a.traversal {

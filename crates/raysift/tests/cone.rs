@@ -8,8 +8,8 @@ use raysift::rays::Camera;
 use raysift::scene::{procedural, Mesh, Scene};
 use raysift::testkit::shared_scenes;
 use raysift::tracers::cone::{
-    bvh::ConeBvh, create, BoxTest, Cone, ConeBatch, ConeHits, ConeTracer, Query, Structure,
-    Traversal,
+    bvh::ConeBvh, create, kdtree::ConeKd, BoxTest, Cone, ConeBatch, ConeHits, ConeTracer, Query,
+    Structure, Traversal,
 };
 
 fn variants() -> Vec<Box<dyn ConeTracer>> {
@@ -29,6 +29,16 @@ fn variants() -> Vec<Box<dyn ConeTracer>> {
         BoxTest::Improved,
         small,
     )));
+    // The kd-tree: the paper's (pbrt-v3) build with both orders, and our default build with
+    // larger leaves (fewer, shallower splits).
+    for t in [Traversal::Stack, Traversal::Sorted] {
+        v.push(create(Structure::Kdtree, t, BoxTest::Improved));
+    }
+    let coarse = raysift::accel::kdtree::BuildConfig {
+        max_leaf: 6,
+        ..Default::default()
+    };
+    v.push(Box::new(ConeKd::with_build(Traversal::Stack, coarse)));
     v
 }
 
@@ -251,6 +261,37 @@ fn early_out_and_counting_mode() {
     assert!(count.work.get("tri_encounters") > one.work.get("tri_encounters"));
 }
 
+/// The same for the kd-tree walk, whose culls are per split plane (Eq. 2).
+#[test]
+fn kdtree_early_out_and_counting_mode() {
+    let scene = procedural::icosphere(5000);
+    let cones = camera_cones(&scene, 16, 0.5);
+    let mut s = create(Structure::Kdtree, Traversal::Stack, BoxTest::Improved);
+    let mut o = create(Structure::Kdtree, Traversal::Sorted, BoxTest::Improved);
+    s.prepare(&scene).unwrap();
+    o.prepare(&scene).unwrap();
+    let mut out = ConeHits::default();
+    let count = s.trace(&scene, &cones, &Query::count(), &mut out).unwrap();
+    assert!(out.prim.is_empty());
+    let one = s
+        .trace(&scene, &cones, &Query::nearest(1), &mut out)
+        .unwrap();
+    let sorted = o
+        .trace(&scene, &cones, &Query::nearest(1), &mut out)
+        .unwrap();
+    let (nc, n1, ns) = (
+        count.work.get("nodes"),
+        one.work.get("nodes"),
+        sorted.work.get("nodes"),
+    );
+    assert!(n1 * 2 < nc, "n = 1 entered {n1} nodes, the full walk {nc}");
+    assert!(ns <= n1, "sorted {ns} > stack {n1}");
+    // One plane test per interior node entered, one box test (the root's) per cone that meets
+    // the scene at most.
+    assert!(count.work.get("plane_tests") < nc && count.work.get("plane_tests") > nc / 3);
+    assert!(count.work.get("box_tests") <= cones.len() as u64);
+}
+
 #[test]
 fn stale_scene_and_bad_cones_are_errors() {
     let mut scene = procedural::icosphere(100);
@@ -300,4 +341,13 @@ fn memory() {
     t.trace(&scene, &cones, &Query::nearest(4), &mut out)
         .unwrap();
     assert!(out.bytes() <= out.prim.capacity() * 8 + out.start.capacity() * 8);
+    // The kd-tree: 8 bytes per node and 4 per triangle reference.
+    let mut k = ConeKd::new(Traversal::Stack);
+    k.prepare(&scene).unwrap();
+    let tree = k.tree();
+    assert_eq!(
+        k.bytes(),
+        tree.nodes.capacity() * 8 + tree.ids.capacity() * 4
+    );
+    assert!(tree.validate(scene.triangles()).is_ok());
 }

@@ -112,6 +112,14 @@ impl ConeFrustum {
         Vec3::from_array(self.o)
     }
 
+    /// The edge slopes `(a_k, b_k)` of axis `k` (module doc; rounded outwards): the cone's
+    /// extent along `k` at axial distance `t` lies in `[o_k + t·a_k, o_k + t·b_k]`. The kd-tree
+    /// cone walk cuts its ranges with them at each split (`tracers/cone/kdtree.rs`).
+    #[inline(always)]
+    pub fn slopes(&self, k: usize) -> (f32, f32) {
+        (self.a[k], self.b[k])
+    }
+
     /// Widened final verdict shared by both versions.
     #[inline(always)]
     fn finish(tmin: f32, tmax: f32) -> Option<(f32, f32)> {

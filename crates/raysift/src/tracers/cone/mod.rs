@@ -15,7 +15,7 @@
 //! | §3 BVH traversal, Listing 2, Fig. 5 | [`crate::geom::cone_frustum`] (basic and improved), [`bvh`] |
 //! | Fig. 6 stack vs node-sorted traversal | [`Traversal`], both in [`bvh`] |
 //! | §4 `n = ∞`, count encounters without intersecting | [`Query::count_only`] |
-//! | §3 kd-tree traversal, Listing 1 | not yet: a sibling of `bvh.rs` over `accel/kdtree/`, driven by the same [`walk`] |
+//! | §3 kd-tree traversal, Listing 1, Eq. 2 (Tsakok) | [`kdtree`] over the shared `accel/kdtree/` (pbrt-v3's build parameters) |
 //!
 //! **The answer.** For cone `c` the eligible triangles are those the exact test accepts with
 //! `t ≤ t_far` and `(t, id) ≥ (t_near, near_id)` (lexicographic); the answer is the first `n`
@@ -25,6 +25,7 @@
 
 pub mod bvh;
 pub mod io;
+pub mod kdtree;
 pub mod list;
 pub mod oracle;
 
@@ -43,8 +44,10 @@ crate::counters! {
     pub struct ConeCounts {
         /// Nodes entered (the paper's "nodes traversed"): popped and processed, root included.
         nodes,
-        /// Cone-frustum/box tests.
+        /// Cone-frustum/box tests (the kd-tree: its root box only).
         box_tests,
+        /// Split-plane distances of the kd-tree walk (Eq. 2: two per split, one test).
+        plane_tests,
         /// Triangles met in entered leaves (the paper's "triangle encounters").
         tri_encounters,
         /// Exact cone/triangle tests (0 in counting mode).
@@ -342,7 +345,7 @@ pub fn offer(
 pub trait Scratch: Default + Send {}
 impl<T: Default + Send> Scratch for T {}
 
-/// One structure's traversal of one cone: everything a walker (BVH now, kd-tree next) must
+/// One structure's traversal of one cone: everything a walker (BVH, kd-tree) must
 /// provide; [`walk`] runs it over a batch in parallel and gathers the answers.
 pub trait Walker: Sync {
     /// Its per-thread scratch.
@@ -421,6 +424,8 @@ pub enum Structure {
     Oracle,
     /// The shared binned-SAH BVH (`accel/bvh`).
     Bvh,
+    /// The shared SAH kd-tree (`accel/kdtree`).
+    Kdtree,
 }
 
 /// Traversal order (Fig. 6).
@@ -461,7 +466,8 @@ pub trait ConeTracer: Send + Sync {
     fn bytes(&self) -> usize;
 }
 
-/// A cone tracer for `structure` with `traversal` and `box_test` (ignored by the oracle).
+/// A cone tracer for `structure` with `traversal` and `box_test` (the BVH's; the oracle
+/// ignores both, the kd-tree the box test).
 pub fn create(
     structure: Structure,
     traversal: Traversal,
@@ -470,5 +476,6 @@ pub fn create(
     match structure {
         Structure::Oracle => Box::new(oracle::Oracle::default()),
         Structure::Bvh => Box::new(bvh::ConeBvh::new(traversal, box_test)),
+        Structure::Kdtree => Box::new(kdtree::ConeKd::new(traversal)),
     }
 }
