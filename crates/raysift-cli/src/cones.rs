@@ -2,12 +2,13 @@
 //! per pixel of the camera or cones from a file, hits to a file, counts and times to stderr or
 //! `--json`.
 
-use crate::args::{camera_for, open_scene, ViewArgs, SCENE_HELP};
+use crate::args::{camera_for, check_png, open_scene, ViewArgs, SCENE_HELP};
 use crate::report::{median, print_json};
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
 use raysift::tracers::cone::{self, io, BoxTest, ConeBatch, ConeHits, Query, Structure, Traversal};
-use std::path::PathBuf;
+use raysift::render::heatmap::{self, HeatScale};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -48,6 +49,11 @@ pub struct ConesArgs {
     /// [apex xyz, axis xyz, half-angle in degrees, t_near].
     #[arg(long, conflicts_with = "aperture")]
     cones: Option<PathBuf>,
+    /// The paper's ray rows: K rays per pixel (K a square: 4, 16, 64) through the same walkers,
+    /// each a cone of half-angle 1e-6° through the centre of one cell of a √K×√K grid over the
+    /// pixel; counts are then reported per pixel (summed over its K rays).
+    #[arg(long, value_name = "K", conflicts_with_all = ["aperture", "cones"])]
+    rays_per_pixel: Option<u32>,
     /// Nearest triangles per cone; omitted: all of them (the paper's n = ∞).
     #[arg(long)]
     n: Option<usize>,
@@ -66,6 +72,11 @@ pub struct ConesArgs {
     /// Output: records (cone u4, prim u4, t f4), cone by cone, each sorted by (t, prim).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also draw each camera cone's cost (nodes entered + triangles met, the paper's Fig. 1) as a
+    /// PNG heatmap with its colour bar (cones from the camera: --aperture or --rays-per-pixel,
+    /// whose K rays of a pixel are summed).
+    #[arg(long, value_name = "PNG")]
+    heatmap: Option<PathBuf>,
     /// Trace this many times; times are medians.
     #[arg(long, default_value_t = 1)]
     repeat: usize,
@@ -95,8 +106,29 @@ struct ConesReport {
     reported: usize,
     nodes_per_cone: f64,
     tri_encounters_per_cone: f64,
+    /// Rays (thin cones) per pixel with --rays-per-pixel, else 1.
+    cones_per_pixel: u32,
+    nodes_per_pixel: f64,
+    tri_encounters_per_pixel: f64,
     counters: raysift::tracer::Counters,
     tracer_bytes: usize,
+    /// The heatmap's scale (min, max, mean cost per pixel) when one was drawn.
+    heatmap_scale: Option<HeatScale>,
+}
+
+/// Sums the cost of each pixel's `k` cones (a √k×√k block of the finer camera's pixels) and
+/// writes the heatmap; returns its scale.
+fn write_heatmap(p: &Path, cost: &[u32], w: u32, h: u32, k: u32) -> Result<HeatScale> {
+    let s = (k as f64).sqrt().round() as u32;
+    let mut px = vec![0u32; (w * h) as usize];
+    for (c, &v) in cost.iter().enumerate() {
+        let (x, y) = (c as u32 % (w * s), c as u32 / (w * s));
+        let q = &mut px[((y / s) * w + x / s) as usize];
+        *q = q.saturating_add(v);
+    }
+    let scale = HeatScale::of(&px);
+    heatmap::draw(&px, w, h, &scale).save_png(p)?;
+    Ok(scale)
 }
 
 pub fn run(a: &ConesArgs) -> Result<()> {
@@ -114,7 +146,21 @@ pub fn run(a: &ConesArgs) -> Result<()> {
 
 fn run_in_pool(a: &ConesArgs) -> Result<()> {
     let scene = open_scene(&a.scene)?;
+    let mut per_pixel = 1;
     let cones: ConeBatch = match (&a.cones, a.aperture) {
+        (None, None) if a.rays_per_pixel.is_some() => {
+            let k = a.rays_per_pixel.unwrap_or(1);
+            let s = (k as f64).sqrt().round() as u32;
+            if k == 0 || s * s != k {
+                bail!("--rays-per-pixel: {k} is not a positive square (4, 16, 64, ...)");
+            }
+            per_pixel = k;
+            let cam = camera_for(&scene.bounds(), &a.view)?;
+            // The camera at s× the resolution: its pixel centres are the centres of an s×s
+            // grid over each of ours.
+            let thin = 1e-6f32.to_radians();
+            ConeBatch::from_camera(&cam, a.view.width * s, a.view.height * s, thin)?
+        }
         (Some(p), _) => io::read_cones(p)?,
         (None, Some(deg)) => {
             if !(deg > 0.0 && deg < 90.0) {
@@ -123,10 +169,16 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
             let cam = camera_for(&scene.bounds(), &a.view)?;
             ConeBatch::from_camera(&cam, a.view.width, a.view.height, deg.to_radians())?
         }
-        (None, None) => bail!("give --aperture DEG (cones from the camera) or --cones FILE"),
+        (None, None) => bail!("give --aperture DEG (cones from the camera), --rays-per-pixel K or --cones FILE"),
     };
     if cones.is_empty() {
         bail!("no cones");
+    }
+    if let Some(p) = &a.heatmap {
+        if a.cones.is_some() {
+            bail!("--heatmap needs cones from the camera (--aperture or --rays-per-pixel), not --cones");
+        }
+        check_png(p)?;
     }
     let structure = match a.structure {
         StructureArg::Bvh => Structure::Bvh,
@@ -165,6 +217,10 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
     if let Some(p) = &a.out {
         io::write_cone_hits(p, &hits)?;
     }
+    let heat = match &a.heatmap {
+        Some(p) => Some(write_heatmap(p, &hits.cost, a.view.width, a.view.height, per_pixel)?),
+        None => None,
+    };
     let per = |k: &str| stats.work.get(k) as f64 / cones.len() as f64;
     let r = ConesReport {
         scene: scene.name.clone(),
@@ -181,8 +237,12 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
         reported: hits.prim.len(),
         nodes_per_cone: per("nodes"),
         tri_encounters_per_cone: per("tri_encounters"),
+        cones_per_pixel: per_pixel,
+        nodes_per_pixel: per("nodes") * per_pixel as f64,
+        tri_encounters_per_pixel: per("tri_encounters") * per_pixel as f64,
         counters: stats.work.clone(),
         tracer_bytes: tracer.bytes(),
+        heatmap_scale: heat,
     };
     if a.json {
         return print_json(&r);

@@ -290,6 +290,10 @@ fn kdtree_early_out_and_counting_mode() {
     // the scene at most.
     assert!(count.work.get("plane_tests") < nc && count.work.get("plane_tests") > nc / 3);
     assert!(count.work.get("box_tests") <= cones.len() as u64);
+    // The per-cone costs (heatmaps) add up to the counters.
+    s.trace(&scene, &cones, &Query::count(), &mut out).unwrap();
+    let sum: u64 = out.cost.iter().map(|&c| c as u64).sum();
+    assert_eq!(sum, nc + count.work.get("tri_encounters"));
 }
 
 #[test]
@@ -322,7 +326,8 @@ fn stale_scene_and_bad_cones_are_errors() {
 }
 
 /// Bytes: the tree is the shared BVH's (64 bytes per node pair + 4 per triangle id); a cone
-/// costs 40 bytes in a batch; an answer 8 bytes per reported triangle plus 8 per cone.
+/// costs 40 bytes in a batch; an answer 8 bytes per reported triangle plus 12 per cone (its
+/// start and its cost).
 #[test]
 fn memory() {
     let scene = procedural::icosphere(20000);
@@ -340,7 +345,10 @@ fn memory() {
     let mut out = ConeHits::default();
     t.trace(&scene, &cones, &Query::nearest(4), &mut out)
         .unwrap();
-    assert!(out.bytes() <= out.prim.capacity() * 8 + out.start.capacity() * 8);
+    assert!(
+        out.bytes() <= out.prim.capacity() * 8 + out.start.capacity() * 8 + out.cost.capacity() * 4
+    );
+    assert_eq!(out.cost.len(), cones.len());
     // The kd-tree: 8 bytes per node and 4 per triangle reference.
     let mut k = ConeKd::new(Traversal::Stack);
     k.prepare(&scene).unwrap();

@@ -247,6 +247,9 @@ pub struct ConeHits {
     pub prim: Vec<u32>,
     /// Their `t` (module doc of [`crate::geom::cone_triangle`]).
     pub t: Vec<f32>,
+    /// Per cone, its nodes entered plus triangles met (the paper's Fig. 1 heatmaps: "the total
+    /// computational complexity of node traversal and primitive intersection per pixel").
+    pub cost: Vec<u32>,
 }
 
 impl ConeHits {
@@ -266,9 +269,12 @@ impl ConeHits {
         (&self.prim[r.clone()], &self.t[r])
     }
 
-    /// Bytes held (8 per reported triangle + 8 per cone).
+    /// Bytes held (8 per reported triangle + 12 per cone).
     pub fn bytes(&self) -> usize {
-        self.start.capacity() * 8 + self.prim.capacity() * 4 + self.t.capacity() * 4
+        self.start.capacity() * 8
+            + self.prim.capacity() * 4
+            + self.t.capacity() * 4
+            + self.cost.capacity() * 4
     }
 
     /// The cones that continue these answers ("the next n"), with their indices in
@@ -376,7 +382,8 @@ pub fn walk<W: Walker>(
 ) -> Stats {
     let n = cones.len();
     let limit = if q.count_only { None } else { q.n };
-    let parts: Vec<(Vec<usize>, Vec<u32>, Vec<f32>, ConeCounts)> = (0..n.div_ceil(CHUNK))
+    type Part = (Vec<usize>, Vec<u32>, Vec<f32>, Vec<u32>, ConeCounts);
+    let parts: Vec<Part> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let range = c * CHUNK..((c + 1) * CHUNK).min(n);
@@ -384,25 +391,32 @@ pub fn walk<W: Walker>(
             let mut list = Nearest::new(limit);
             let mut counts = ConeCounts::default();
             let (mut lens, mut prim, mut t) = (Vec::with_capacity(range.len()), vec![], vec![]);
+            let mut cost = Vec::with_capacity(range.len());
             for i in range {
                 let cone = cones.get(i);
                 list.reset(cone.t_near, cone.near_id, cone.t_far);
                 let p = Prepared::new(&cone);
+                let work = counts.nodes + counts.tri_encounters;
                 w.walk(soup, &p, &mut list, q.count_only, &mut scratch, &mut counts);
+                let work = counts.nodes + counts.tri_encounters - work;
+                cost.push(work.min(u32::MAX as u64) as u32);
                 let before = prim.len();
                 list.drain_into(&mut prim, &mut t);
                 lens.push(prim.len() - before);
             }
-            (lens, prim, t, counts)
+            (lens, prim, t, cost, counts)
         })
         .collect();
     out.start.clear();
     out.prim.clear();
     out.t.clear();
+    out.cost.clear();
+    out.cost.reserve(n);
     out.start.reserve(n + 1);
     out.start.push(0);
     let mut total = ConeCounts::default();
-    for (lens, prim, t, counts) in parts {
+    for (lens, prim, t, cost, counts) in parts {
+        out.cost.extend_from_slice(&cost);
         for l in lens {
             let last = *out.start.last().expect("start has its 0");
             out.start.push(last + l);
