@@ -6,8 +6,8 @@ use crate::args::{camera_for, check_png, open_scene, ViewArgs, SCENE_HELP};
 use crate::report::{median, print_json};
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
-use raysift::tracers::cone::{self, io, BoxTest, ConeBatch, ConeHits, Query, Structure, Traversal};
 use raysift::render::heatmap::{self, HeatScale};
+use raysift::tracers::cone::{self, io, BoxTest, ConeBatch, ConeHits, Query, Structure, Traversal};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -169,7 +169,9 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
             let cam = camera_for(&scene.bounds(), &a.view)?;
             ConeBatch::from_camera(&cam, a.view.width, a.view.height, deg.to_radians())?
         }
-        (None, None) => bail!("give --aperture DEG (cones from the camera), --rays-per-pixel K or --cones FILE"),
+        (None, None) => {
+            bail!("give --aperture DEG (cones from the camera), --rays-per-pixel K or --cones FILE")
+        }
     };
     if cones.is_empty() {
         bail!("no cones");
@@ -218,7 +220,13 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
         io::write_cone_hits(p, &hits)?;
     }
     let heat = match &a.heatmap {
-        Some(p) => Some(write_heatmap(p, &hits.cost, a.view.width, a.view.height, per_pixel)?),
+        Some(p) => Some(write_heatmap(
+            p,
+            &hits.cost,
+            a.view.width,
+            a.view.height,
+            per_pixel,
+        )?),
         None => None,
     };
     let per = |k: &str| stats.work.get(k) as f64 / cones.len() as f64;

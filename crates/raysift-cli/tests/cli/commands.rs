@@ -464,7 +464,7 @@ fn path_tracing_reports_every_bounce() {
 // ---- What a new user ran into (issue 12, item 6): each of these failed before the fix.
 
 /// Width and height of a PNG, from its IHDR chunk.
-fn png_size(path: &str) -> (u32, u32) {
+pub(crate) fn png_size(path: &str) -> (u32, u32) {
     let b = std::fs::read(path).unwrap();
     assert_eq!(&b[1..4], b"PNG");
     let be = |k: usize| u32::from_be_bytes(b[k..k + 4].try_into().unwrap());

@@ -118,6 +118,66 @@ fn camera_and_file_cones_equal_the_oracle() {
 }
 
 #[test]
+fn kdtree_rays_per_pixel_and_heatmap() {
+    let d = tmp();
+    let (k, o) = (p(d.path(), "kd.npy"), p(d.path(), "oracle.npy"));
+    let view = [
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--aperture",
+        "2",
+        "--n",
+        "3",
+    ];
+    ok(&[
+        &["cones", "sphere:500", "--out", &k, "--structure", "kdtree"][..],
+        &view,
+    ]
+    .concat());
+    ok(&[
+        &["cones", "sphere:500", "--out", &o, "--structure", "oracle"][..],
+        &view,
+    ]
+    .concat());
+    assert_eq!(records(&k), records(&o));
+    assert!(!records(&k).is_empty());
+    // 4 rays per pixel: 4× the cones, counts per pixel = 4 × per cone; the heatmap is drawn
+    // at the pixel size (8 + the colour bar wide).
+    let heat = p(d.path(), "heat.png");
+    let j = json(&ok(&[
+        "cones",
+        "sphere:500",
+        "--rays-per-pixel",
+        "4",
+        "--count",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--structure",
+        "kdtree",
+        "--heatmap",
+        &heat,
+        "--json",
+    ]));
+    assert_eq!(j["cones"], 256);
+    assert_eq!(j["cones_per_pixel"], 4);
+    let (pc, pp) = (
+        j["nodes_per_cone"].as_f64().unwrap(),
+        j["nodes_per_pixel"].as_f64().unwrap(),
+    );
+    assert!(pc > 0.0 && (pp - 4.0 * pc).abs() < 1e-9);
+    let scale = &j["heatmap_scale"];
+    let mean = scale["mean"].as_f64().unwrap();
+    let per_px = pp + j["tri_encounters_per_pixel"].as_f64().unwrap();
+    assert!((mean - per_px).abs() < 1e-6 * per_px, "{mean} vs {per_px}");
+    let (w, h) = super::commands::png_size(&heat);
+    assert!(h == 8 && w > 8, "{w}×{h}");
+}
+
+#[test]
 fn bad_cones_are_clean_errors() {
     let d = tmp();
     let out = p(d.path(), "out.npy");
@@ -170,5 +230,38 @@ fn bad_cones_are_clean_errors() {
         "--aperture",
     );
     fails(&["cones", "sphere:50", "--out", &out], "--aperture");
-    assert!(!Path::new(&out).exists());
+    fails(
+        &["cones", "sphere:50", "--rays-per-pixel", "5", "--out", &out],
+        "not a positive square",
+    );
+    let heat = p(d.path(), "heat.jpg");
+    fails(
+        &[
+            "cones",
+            "sphere:50",
+            "--aperture",
+            "1",
+            "--heatmap",
+            &heat,
+            "--out",
+            &out,
+        ],
+        "heat.jpg",
+    );
+    npy(&f, "<f4", "(1, 8)", &f32s(&good));
+    let heat = p(d.path(), "heat.png");
+    fails(
+        &[
+            "cones",
+            "sphere:50",
+            "--cones",
+            &f,
+            "--heatmap",
+            &heat,
+            "--out",
+            &out,
+        ],
+        "--heatmap needs cones from the camera",
+    );
+    assert!(!Path::new(&out).exists() && !Path::new(&heat).exists());
 }
