@@ -170,7 +170,9 @@ impl PyAnimation {
     /// ``set_transform``, deformed ones through ``set_vertices``, so its tracers update.
     fn set_time(&self, py: Python<'_>, t: f32) -> PyResult<()> {
         if !t.is_finite() {
-            return Err(PyValueError::new_err(format!("t: {t}; expected a finite time")));
+            return Err(PyValueError::new_err(format!(
+                "t: {t}; expected a finite time"
+            )));
         }
         let mut guard = self.lock(py);
         let a: &mut Animation = &mut guard;
@@ -230,8 +232,11 @@ impl PyAnimation {
             "raysift.Animation({:?}: {} {}, {} triangles in {} meshes)",
             s.name,
             a.motion().name(),
-            a.playback()
-                .map_or(String::new(), |p| format!("{:?} ({} s)", p.clip().name, p.clip().duration)),
+            a.playback().map_or(String::new(), |p| format!(
+                "{:?} ({} s)",
+                p.clip().name,
+                p.clip().duration
+            )),
             s.len(),
             s.meshes().len()
         )

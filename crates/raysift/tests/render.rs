@@ -317,7 +317,12 @@ fn path_windows_assemble_the_full_image() {
     let mut got = vec![0u8; full.rgb.len()];
     let tiles = [(8, 0, 15, 9), (0, 9, 23, 8), (0, 0, 8, 9)];
     for (x0, y0, tw, th) in tiles {
-        let win = Window { x0, y0, w: tw, h: th };
+        let win = Window {
+            x0,
+            y0,
+            w: tw,
+            h: th,
+        };
         let (img, _) = path_trace_window(&s, t.as_ref(), &cam, w, h, &pc, win).unwrap();
         assert_eq!((img.width, img.height), (tw, th));
         for r in 0..th {
@@ -326,6 +331,11 @@ fn path_windows_assemble_the_full_image() {
         }
     }
     assert_eq!(got, full.rgb);
-    let outside = Window { x0: 20, y0: 0, w: 4, h: 1 };
+    let outside = Window {
+        x0: 20,
+        y0: 0,
+        w: 4,
+        h: 1,
+    };
     assert!(path_trace_window(&s, t.as_ref(), &cam, w, h, &pc, outside).is_err());
 }

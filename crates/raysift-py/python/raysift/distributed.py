@@ -39,7 +39,9 @@ How the work runs:
 
 Each call returns a summary dict: ``computed`` and ``skipped`` (task keys: frame numbers, tile
 origins ``(x0, y0)``, chunk offsets), ``workers``, ``pids`` (per worker, the process ids that
-served it: more than one after a restart), ``restarts``, ``seconds``; ``render_tiles`` adds
+served it: more than one after a restart), ``restarts``, ``load_s`` (each worker's scene
+load), ``seconds`` (the whole call), ``start_s`` (until every worker had loaded the scene) and
+``work_s`` (the rest: tasks and writing); ``render_tiles`` adds
 ``image``. ``callback(key, info)``, if given, is called here after each task's output is
 written (``info``: ``pid`` of the worker process that computed it, ``worker`` its index,
 ``worker_pids`` the first pid of every worker).
@@ -398,6 +400,7 @@ def _run(ray, *, spec: str, kind: str, params: dict, keys: Sequence, method: str
     actors = [cls.options(num_cpus=threads, max_restarts=retries, max_task_retries=retries)
               .remote(pack, kind, threads, params) for _ in range(workers)]
     infos = ray.get([a.info.remote() for a in actors])
+    summary["start_s"] = time.perf_counter() - t0
     first = [i["pid"] for i in infos]
     pids = [[p] for p in first]
     summary["load_s"] = [i["load_s"] for i in infos]
@@ -441,6 +444,7 @@ def _run(ray, *, spec: str, kind: str, params: dict, keys: Sequence, method: str
     summary["pids"] = pids
     summary["restarts"] = sum(len(p) - 1 for p in pids)
     summary["seconds"] = time.perf_counter() - t0
+    summary["work_s"] = summary["seconds"] - summary["start_s"]
     return summary
 
 
