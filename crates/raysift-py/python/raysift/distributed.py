@@ -20,7 +20,8 @@ How the work runs:
   every actor read ``scene_file`` itself (a path every node can read: NFS, a bucket mount) and
   ships nothing; use it for scenes of many gigabytes.
 - **Output by the driver, atomically.** Results come back to this process, which writes them:
-  a frame's PNG to a temporary name then renamed (so a frame file that exists is complete), ray
+  a frame's PNG (encoded by the worker) to a temporary name then renamed (so a frame file that
+  exists is complete), ray
   hits into a memory-mapped ``.npy`` at their offsets (``out + ".partial"``, with the finished
   chunks listed in ``out + ".done"``; renamed to ``out`` when every chunk is in), tiles into a
   memory-mapped image likewise. A killed or failed run leaves no half-written output file.
@@ -301,7 +302,8 @@ class _Worker:
         p = self.params
         self.anim.set_time(self.anim.frame_time(k, p["frames"]))
         img = self.scene.render(p["width"], p["height"], threads=self.threads, **p["render"])
-        return np.rint(img * 255.0).astype(np.uint8), self.pid
+        # Encoded here, so the driver only writes bytes (its share per frame stays small).
+        return png_bytes(np.rint(img * 255.0).astype(np.uint8)), self.pid
 
     def tile(self, win: tuple):
         p = self.params
@@ -499,7 +501,7 @@ def render_animation(scene_file: PathLike, frames: int = 8, *, out: PathLike,
     todo = [k for k in range(frames) if not name(k).exists()]
     ray = connect(address)
     return _run(ray, spec=spec, kind="animation", params=params, keys=todo, method="frame",
-                args_of=lambda k: (k,), write=lambda k, rgb: _write_atomic(name(k), png_bytes(rgb)),
+                args_of=lambda k: (k,), write=lambda k, png: _write_atomic(name(k), png),
                 workers=workers, threads=threads, retries=retries, transport=scene_transport,
                 unit="frames", quiet=quiet, skipped=skipped, callback=callback)
 
