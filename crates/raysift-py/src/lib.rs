@@ -3,6 +3,7 @@
 //! with no code here.
 //!
 //! - [`scene`]: `raysift.Scene` (meshes, changes, `cast_rays`, `test_occlusions`, `render`);
+//! - [`animation`]: `raysift.Animation` (a file's motion posed into a scene at any time);
 //! - [`state`]: what a scene holds (prepared tracers, kept buffers, the last query's stats);
 //! - [`query`]: one query, numpy rays to numpy answers, chunk by chunk, GIL released;
 //! - [`arrays`]: numpy inputs to the library's types, validated, errors naming argument and index;
@@ -12,6 +13,7 @@
 //! The Python side (`python/raysift/`) re-exports this module, adds the trimesh adapter, and
 //! carries the type stubs.
 
+mod animation;
 mod arrays;
 mod mem;
 mod query;
@@ -139,6 +141,7 @@ fn create_rays_pinhole<'py>(
 #[pymodule]
 fn _raysift(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<scene::PyScene>()?;
+    m.add_class::<animation::PyAnimation>()?;
     m.add_function(wrap_pyfunction!(tracers, m)?)?;
     m.add_function(wrap_pyfunction!(create_rays_pinhole, m)?)?;
     m.add("MISS", raysift::rays::MISS)?;

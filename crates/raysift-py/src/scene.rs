@@ -127,6 +127,16 @@ fn camera_for(
 }
 
 impl PyScene {
+    /// A Python scene of a library scene.
+    pub(crate) fn from_library(scene: Scene) -> Self {
+        new_scene(scene)
+    }
+
+    /// The scene's state, locked (for `raysift.Animation`, which poses it).
+    pub(crate) fn lock_inner<'a>(&'a self, py: Python<'_>) -> MutexGuard<'a, Inner> {
+        self.lock(py)
+    }
+
     fn lock<'a>(&'a self, py: Python<'_>) -> MutexGuard<'a, Inner> {
         match self.inner.lock_py_attached(py) {
             Ok(g) => g,
@@ -458,11 +468,15 @@ impl PyScene {
     /// ``integrator``: ``"raycast"`` (one ray per pixel; ``shade`` ``"diffuse"`` with a point
     /// light ``light`` and hard shadows, ``"normal"`` or ``"depth"``) or ``"path"`` (diffuse path
     /// tracing under a sky, ``spp`` samples per pixel, ``bounces`` bounces, ``seed``). Camera as
-    /// ``camera_rays``. One library call: the GIL is released throughout, and Ctrl-C is honoured
-    /// when it returns.
+    /// ``camera_rays``. ``window``: ``(x0, y0, w, h)``, the path integrator renders only those
+    /// pixels of the ``width`` × ``height`` image (columns x0 .. x0+w, rows y0 .. y0+h from the
+    /// top) and returns (h, w, 3): equal bit for bit to that window of the full render, since a
+    /// pixel's random numbers come from its index in the full image (tiles on a cluster:
+    /// ``raysift.distributed.render_tiles``). One library call: the GIL is released throughout,
+    /// and Ctrl-C is honoured when it returns.
     #[pyo3(signature = (width=512, height=512, *, eye=None, look=None, up=None, fov=45.0,
                         integrator="raycast", shade="diffuse", light=None, spp=4, bounces=7,
-                        seed=1, tracer="dacrt", threads=0, **options))]
+                        seed=1, tracer="dacrt", threads=0, window=None, **options))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -481,8 +495,30 @@ impl PyScene {
         seed: u64,
         tracer: &str,
         threads: usize,
+        window: Option<(u32, u32, u32, u32)>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let win = match window {
+            None => None,
+            Some(_) if integrator != "path" => {
+                return Err(PyValueError::new_err(
+                    "window: only the \"path\" integrator renders a window of the image",
+                ))
+            }
+            Some((x0, y0, w, h)) => {
+                if w == 0
+                    || h == 0
+                    || x0 as u64 + w as u64 > width as u64
+                    || y0 as u64 + h as u64 > height as u64
+                {
+                    return Err(PyValueError::new_err(format!(
+                        "window: ({x0}, {y0}, {w}, {h}) is not a non-empty window of the {width}x{height} image"
+                    )));
+                }
+                Some(raysift::render::path::Window { x0, y0, w, h })
+            }
+        };
+        let (out_w, out_h) = win.map_or((width, height), |w| (w.w, w.h));
         let shade: raysift::render::Shade = shade.parse().map_err(lib_err)?;
         if !matches!(integrator, "raycast" | "path") {
             return Err(PyValueError::new_err(format!(
@@ -507,8 +543,17 @@ impl PyScene {
                             seed,
                             ..Default::default()
                         };
-                        raysift::render::path::path_trace(scene, tr, &cam, width, height, &cfg)
-                            .map(|(img, _)| img)
+                        let full = raysift::render::path::Window::full(width, height);
+                        raysift::render::path::path_trace_window(
+                            scene,
+                            tr,
+                            &cam,
+                            width,
+                            height,
+                            &cfg,
+                            win.unwrap_or(full),
+                        )
+                        .map(|(img, _)| img)
                     } else {
                         raysift::render::raycast(scene, tr, &cam, width, height, shade, light)
                             .map(|(img, _)| img)
@@ -520,7 +565,7 @@ impl PyScene {
         py.check_signals()?;
         let rgb: Vec<f32> = img.rgb.iter().map(|&c| c as f32 / 255.0).collect();
         Ok(PyArray1::from_vec(py, rgb)
-            .reshape(vec![height as usize, width as usize, 3])?
+            .reshape(vec![out_h as usize, out_w as usize, 3])?
             .into_any())
     }
 

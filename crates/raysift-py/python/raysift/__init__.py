@@ -9,11 +9,14 @@ exactly the brute-force answer, bit for bit. Names follow Open3D's ``RaycastingS
     hits = scene.cast_rays(rays, tracer="dacrt")     # dict of arrays of shape (480, 640, ...)
     depth = hits["t_hit"]
 
-``raysift.trimesh.RayMeshIntersector`` gives trimesh's ray interface (``mesh.ray = ...``).
+``raysift.trimesh.RayMeshIntersector`` gives trimesh's ray interface (``mesh.ray = ...``);
+``raysift.Animation`` poses a file's motion at any time; ``raysift.distributed`` runs frames,
+image tiles and ray batches on a Ray cluster (``pip install "raysift[cluster]"``).
 """
 
 from ._raysift import (
     DEFAULT_CHUNK_RAYS,
+    Animation,
     MISS,
     Scene,
     __version__,
@@ -23,6 +26,7 @@ from ._raysift import (
 
 __all__ = [
     "DEFAULT_CHUNK_RAYS",
+    "Animation",
     "MISS",
     "Scene",
     "__version__",

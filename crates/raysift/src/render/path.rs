@@ -19,7 +19,7 @@
 
 use super::light::{geometry_term, shadow_ray, Lights};
 use super::Image;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::rays::{generate, Camera, HitBatch, Ray, RayBatch};
 use crate::scene::Scene;
 use crate::tracer::{Stats, Tracer};
@@ -48,6 +48,51 @@ impl Default for PathConfig {
             albedo: 0.7,
             seed: 1,
         }
+    }
+}
+
+/// A window of the full image's pixels: columns `x0 .. x0 + w`, rows `y0 .. y0 + h` (a tile).
+/// Rendered with [`path_trace_window`], its pixels keep their full-image index for the random
+/// numbers, so tiles assembled are the full image bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x0: u32,
+    /// First row (from the top).
+    pub y0: u32,
+    /// Columns.
+    pub w: u32,
+    /// Rows.
+    pub h: u32,
+}
+
+impl Window {
+    /// The whole `width` × `height` image.
+    pub fn full(width: u32, height: u32) -> Self {
+        Self {
+            x0: 0,
+            y0: 0,
+            w: width,
+            h: height,
+        }
+    }
+
+    /// The full-image index of the window's pixel `k` (row-major in the window).
+    #[inline]
+    fn pixel(&self, k: u32, width: u32) -> u32 {
+        (self.y0 + k / self.w) * width + self.x0 + k % self.w
+    }
+
+    fn check(&self, width: u32, height: u32) -> Result<()> {
+        if self.x0 as u64 + self.w as u64 > width as u64
+            || self.y0 as u64 + self.h as u64 > height as u64
+        {
+            return Err(Error::Invalid(format!(
+                "window {}x{} at ({}, {}) is not inside the {width}x{height} image",
+                self.w, self.h, self.x0, self.y0
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -101,6 +146,23 @@ pub fn path_trace(
     Ok((super::to_image(&sum, width, height), per_depth))
 }
 
+/// [`path_trace`] of the pixels of `window` only: a `window.w` × `window.h` image equal bit for
+/// bit to that window of the full `width` × `height` render.
+pub fn path_trace_window(
+    scene: &Scene,
+    tracer: &dyn Tracer,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    cfg: &PathConfig,
+    window: Window,
+) -> Result<(Image, Vec<BounceStats>)> {
+    let lights = Lights::of_scene(scene);
+    let (sum, per_depth) =
+        path_trace_lit_window(scene, tracer, camera, width, height, cfg, &lights, window)?;
+    Ok((super::to_image(&sum, window.w, window.h), per_depth))
+}
+
 /// A generator for one path vertex: independent of batch order and thread count.
 #[inline]
 pub(crate) fn vertex_rng(seed: u64, sample: u32, depth: u32, pixel: u32) -> rand_pcg::Pcg64Mcg {
@@ -119,12 +181,25 @@ pub(crate) fn jittered_primary(
     seed: u64,
     s: u32,
 ) -> RayBatch {
-    let n = width as usize * height as usize;
+    jittered_primary_window(camera, width, height, Window::full(width, height), seed, s)
+}
+
+/// [`jittered_primary`] for the pixels of `win` (row-major in it; full-image pixel indices).
+fn jittered_primary_window(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    win: Window,
+    seed: u64,
+    s: u32,
+) -> RayBatch {
+    let n = win.w as usize * win.h as usize;
     let (right, up, forward) = camera.basis();
     let tan = (camera.fov_deg.to_radians() * 0.5).tan();
     let dirs: Vec<Vec3> = (0..n)
         .into_par_iter()
         .map(|k| {
+            let k = win.pixel(k as u32, width) as usize;
             let mut rng = vertex_rng(seed, s, u32::MAX, k as u32);
             let (i, j) = (
                 (k % width as usize) as f32 + rng.gen::<f32>(),
@@ -141,11 +216,13 @@ pub(crate) fn jittered_primary(
         tmin: 0.0,
         tmax: f32::INFINITY,
     }));
-    b.layout = crate::rays::RayLayout::Pinhole {
-        eye: camera.eye,
-        width,
-        height,
-    };
+    if win == Window::full(width, height) {
+        b.layout = crate::rays::RayLayout::Pinhole {
+            eye: camera.eye,
+            width,
+            height,
+        };
+    }
     b
 }
 
@@ -168,7 +245,24 @@ pub fn path_trace_lit(
     cfg: &PathConfig,
     lights: &Lights,
 ) -> Result<(Vec<Vec3>, Vec<BounceStats>)> {
-    let n = width as usize * height as usize;
+    let full = Window::full(width, height);
+    path_trace_lit_window(scene, tracer, camera, width, height, cfg, lights, full)
+}
+
+/// [`path_trace_lit`] of the pixels of `win` (row-major in the window; see [`Window`]).
+#[allow(clippy::too_many_arguments)]
+pub fn path_trace_lit_window(
+    scene: &Scene,
+    tracer: &dyn Tracer,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    cfg: &PathConfig,
+    lights: &Lights,
+    win: Window,
+) -> Result<(Vec<Vec3>, Vec<BounceStats>)> {
+    win.check(width, height)?;
+    let n = win.w as usize * win.h as usize;
     let mut sum = vec![Vec3::ZERO; n];
     let mut per_depth: Vec<BounceStats> = (0..=cfg.bounces)
         .map(|d| BounceStats {
@@ -182,7 +276,7 @@ pub fn path_trace_lit(
         ..Default::default()
     };
     for s in 0..cfg.spp {
-        let mut rays = jittered_primary(camera, width, height, cfg.seed, s);
+        let mut rays = jittered_primary_window(camera, width, height, win, cfg.seed, s);
         let mut pixel: Vec<u32> = (0..n as u32).collect();
         let mut throughput = vec![Vec3::ONE; n];
         // Camera rays and mirror bounces see emission (NEE does not cover them).
@@ -224,7 +318,7 @@ pub fn path_trace_lit(
                         Vec3::ZERO
                     };
                     let (p, nrm) = generate::hit_frame(scene, &rays, &hits, i);
-                    let mut rng = vertex_rng(cfg.seed, s, depth, pixel[i]);
+                    let mut rng = vertex_rng(cfg.seed, s, depth, win.pixel(pixel[i], width));
                     let o = p + nrm * eps;
                     if m.mirror {
                         let d = rays.dir(i).normalize();
