@@ -70,7 +70,9 @@ fn open_animation(a: &AnimateArgs) -> Result<(Scene, Animation)> {
                 None if a.motion == Some(Motion::Gltf) => {
                     bail!("{spec}: the file has no animations (--motion gltf)")
                 }
-                None if a.animation.is_some() => bail!("{spec}: the file has no animations (--animation)"),
+                None if a.animation.is_some() => {
+                    bail!("{spec}: the file has no animations (--animation)")
+                }
                 None => {
                     let anim = Animation::new(&scene, Motion::Explode)?;
                     return Ok((scene, anim));

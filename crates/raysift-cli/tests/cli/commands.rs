@@ -659,14 +659,34 @@ fn animate_plays_a_gltf_animation() {
     // The quad deforms every frame; the STEP-rotated triangle moves only at 1 s.
     let md: Vec<(u64, u64)> = frames[1..]
         .iter()
-        .map(|f| (f["moved"].as_u64().unwrap(), f["deformed"].as_u64().unwrap()))
+        .map(|f| {
+            (
+                f["moved"].as_u64().unwrap(),
+                f["deformed"].as_u64().unwrap(),
+            )
+        })
         .collect();
     assert_eq!(md, [(0, 1), (1, 1), (0, 1)]);
     assert!(d.path().join("frames/frame_0003.png").exists());
     // By index, and the explode motion still plays on the same file.
-    ok(&["animate", &rig, "--animation", "0", "--frames", "2", "--no-images"]);
+    ok(&[
+        "animate",
+        &rig,
+        "--animation",
+        "0",
+        "--frames",
+        "2",
+        "--no-images",
+    ]);
     let o = ok(&[
-        "animate", &rig, "--motion", "explode", "--frames", "2", "--no-images", "--json",
+        "animate",
+        &rig,
+        "--motion",
+        "explode",
+        "--frames",
+        "2",
+        "--no-images",
+        "--json",
     ]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["motion"], "explode");

@@ -537,7 +537,10 @@ fn render_light_and_integrator_errors_write_nothing() {
     run(&[&dist[..], &["--spp", "4"]].concat(), "--spp");
     run(&["--aa", "2"], "--aa applies to --integrator distribution");
     run(&["--seed", "2"], "--seed");
-    run(&["--vpls", "10"], "--vpls applies to --integrator instant-radiosity");
+    run(
+        &["--vpls", "10"],
+        "--vpls applies to --integrator instant-radiosity",
+    );
     run(&["--integrator", "instant-radiosity"], "needs a light");
     run(
         &["--integrator", "path", "--light-samples", "2"],
@@ -571,27 +574,56 @@ fn bad_gltf_animations_fail_without_frames() {
     };
     let mut r = Rig::new();
     r.json["animations"][0]["channels"] = serde_json::json!([]);
-    run("empty.glb", &r, "animations[0].channels: the animation has no channels");
+    run(
+        "empty.glb",
+        &r,
+        "animations[0].channels: the animation has no channels",
+    );
     let mut r = Rig::new();
     r.json["animations"][0]["channels"][0]["target"]["node"] = 40.into();
-    run("missing-node.glb", &r, "animations[0].channels[0].target.node");
+    run(
+        "missing-node.glb",
+        &r,
+        "animations[0].channels[0].target.node",
+    );
     let mut r = Rig::new();
     r.json["accessors"][9]["count"] = 1.into();
-    run("count.glb", &r, "animations[0].samplers[2].output: accessor 9 has 1 values, 2 expected");
+    run(
+        "count.glb",
+        &r,
+        "animations[0].samplers[2].output: accessor 9 has 1 values, 2 expected",
+    );
     let mut r = Rig::new();
     r.json["accessors"][4]["count"] = 2.into();
-    run("weights.glb", &r, "attributes.WEIGHTS_0: accessor 4 has 2 elements but POSITION has 4");
+    run(
+        "weights.glb",
+        &r,
+        "attributes.WEIGHTS_0: accessor 4 has 2 elements but POSITION has 4",
+    );
     let mut r = Rig::new();
     r.set_f32(at::ROT_STEP + 16, f32::NAN);
-    run("nan.glb", &r, "animations[0].samplers[2].output (accessors[9], element 1): non-finite");
+    run(
+        "nan.glb",
+        &r,
+        "animations[0].samplers[2].output (accessors[9], element 1): non-finite",
+    );
     // Arguments that do not fit the file.
     let rig = p(d.path(), "rig.glb");
     std::fs::write(&rig, Rig::new().glb()).unwrap();
-    fails(&["animate", &rig, "--animation", "run", "--no-images"], "0 (\"wave\")");
-    fails(&["animate", "sphere:80", "--motion", "gltf", "--no-images"], "--motion gltf");
+    fails(
+        &["animate", &rig, "--animation", "run", "--no-images"],
+        "0 (\"wave\")",
+    );
+    fails(
+        &["animate", "sphere:80", "--motion", "gltf", "--no-images"],
+        "--motion gltf",
+    );
     let mut r = Rig::new();
     r.json.as_object_mut().unwrap().remove("animations");
     let still = p(d.path(), "still.glb");
     std::fs::write(&still, r.glb()).unwrap();
-    fails(&["animate", &still, "--motion", "gltf", "--no-images"], "has no animations");
+    fails(
+        &["animate", &still, "--motion", "gltf", "--no-images"],
+        "has no animations",
+    );
 }
