@@ -350,7 +350,7 @@ pub fn load(file: &Path, f: &SceneFile) -> Result<Scene> {
                         .sum::<f32>()
                 })
                 .sum();
-            if !(area > 0.0) {
+            if area.is_nan() || area <= 0.0 {
                 if mat.is_emissive() {
                     bail!(
                         "{}: the mesh has zero area, so it cannot be a light",
