@@ -41,6 +41,9 @@ pub struct AnimateArgs {
     /// Shading: diffuse (with shadows), normal or depth.
     #[arg(long, default_value = "diffuse", value_parser = crate::render::shade_parser())]
     shade: Shade,
+    /// No progress bar (it is drawn only on a terminal).
+    #[arg(long)]
+    quiet: bool,
     #[command(flatten)]
     pub tracer: TracerArgs,
 }
@@ -91,6 +94,7 @@ fn open_animation(a: &AnimateArgs) -> Result<(Scene, Animation)> {
 }
 
 pub fn run(a: &AnimateArgs) -> Result<()> {
+    progress::set_quiet(a.quiet);
     if a.frames == 0 {
         bail!("--frames must be at least 1");
     }

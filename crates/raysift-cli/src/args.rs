@@ -9,7 +9,6 @@ use raysift::rays::Camera;
 use raysift::scene::{self, procedural, Scene};
 use raysift::tracers;
 use raysift::Tracer;
-use std::path::Path;
 
 /// The scene argument's help: a file or a generator.
 pub const SCENE_HELP: &str = "Scene file (.obj .ply .gltf .glb .off, optionally .gz) or generator (sphere:N, soup:N[:SEED], cornell, tile:K:FILE)";
@@ -38,7 +37,7 @@ pub struct ViewArgs {
 }
 
 /// Which tracer, with which options, on how many threads; and the report's form.
-#[derive(Args)]
+#[derive(Args, Clone)]
 pub struct TracerArgs {
     /// Tracer name (see `raysift tracers`).
     #[arg(long, default_value = "bvh")]
@@ -105,21 +104,6 @@ pub fn camera_for(bounds: &raysift::geom::Aabb, v: &ViewArgs) -> Result<Camera> 
     cam.up = v.up;
     cam.validate()?;
     Ok(cam)
-}
-
-/// Refuses an image path raysift cannot write (PNG only, for now), before any work is done.
-pub fn check_png(path: &Path) -> Result<()> {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some(e) if e.eq_ignore_ascii_case("png") => Ok(()),
-        Some(e) => bail!(
-            "{}: cannot write .{e} images; raysift writes PNG only (name the file .png)",
-            path.display()
-        ),
-        None => bail!(
-            "{}: no extension; raysift writes PNG images (name the file .png)",
-            path.display()
-        ),
-    }
 }
 
 /// The tracer `--tracer` with its `--opt`s.

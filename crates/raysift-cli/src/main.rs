@@ -14,12 +14,14 @@ mod animate;
 mod args;
 mod cones;
 mod export;
+mod image_out;
 mod info;
 mod pool;
 mod progress;
 mod rays;
 mod render;
 mod report;
+mod scenefile;
 mod soak;
 mod trace;
 mod tracers;
@@ -69,19 +71,26 @@ fn main() {
     }
     // Usage errors are clap's whole message (what is missing or wrong, the allowed values, the
     // usage line), exit code 2; no arguments at all print the help, also with code 2.
-    let cli = Cli::parse();
-    if let Err(e) = run(cli) {
+    let matches = <Cli as clap::CommandFactory>::command().get_matches();
+    let cli =
+        <Cli as clap::FromArgMatches>::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    // Which `render` arguments were typed (a scene file's settings yield to them).
+    let given = matches
+        .subcommand_matches("render")
+        .map(render::given_ids)
+        .unwrap_or_default();
+    if let Err(e) = run(cli, &given) {
         eprintln!("raysift: error: {e:#}");
         std::process::exit(2);
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(cli: Cli, given: &[String]) -> Result<()> {
     match cli.cmd {
         Cmd::Info(a) => info::run(&a),
         Cmd::Rays(r) => rays::run(r),
         Cmd::Trace(t) => pool::with_threads(&t.tracer, || trace::run(&t)),
-        Cmd::Render(r) => pool::with_threads(&r.tracer, || render::run(&r)),
+        Cmd::Render(r) => pool::with_threads(&r.tracer, || render::run(&r, given)),
         Cmd::Animate(a) => pool::with_threads(&a.tracer, || animate::run(&a)),
         Cmd::Export(a) => export::run(&a),
         Cmd::Tracers(a) => tracers::run(&a),

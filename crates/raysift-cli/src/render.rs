@@ -1,9 +1,11 @@
 //! `raysift render`: an image by ray casting (normal, depth or diffuse shading with shadows),
 //! diffuse path tracing, or a heatmap of the tracer's per-ray cost.
 
-use crate::args::{camera_for, check_png, make_tracer, open_scene_or_default, parse_vec3};
+use crate::args::{camera_for, make_tracer, open_scene_or_default, parse_vec3};
 use crate::args::{TracerArgs, ViewArgs};
+use crate::image_out::{format_of, write_radiance, Format};
 use crate::progress::spinner;
+use crate::progress::{Plan, RenderBar};
 use crate::report::{mrays_per_s, print_json, BounceReport, Counts, PassReport};
 use crate::report::{HeatmapReport, PathReport, RenderReport};
 use anyhow::{bail, Result};
@@ -15,63 +17,68 @@ use raysift::Stats;
 use std::path::PathBuf;
 use std::time::Instant;
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 pub struct RenderArgs {
-    /// Scene file or generator; the embedded bunny when omitted.
-    scene: Option<String>,
+    /// Scene file or generator, or a scene description (.toml or .json: meshes, camera, lights,
+    /// settings; the flags typed here override it); the embedded bunny when omitted.
+    pub(crate) scene: Option<String>,
     #[command(flatten)]
-    view: ViewArgs,
+    pub(crate) view: ViewArgs,
     /// Point light x,y,z for diffuse shading (default: above and right of the eye).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    light: Option<Vec3>,
+    pub(crate) light: Option<Vec3>,
     /// Ray casting's shading: diffuse (with shadows; the default), normal or depth.
     #[arg(long, value_parser = shade_parser())]
-    shade: Option<Shade>,
+    pub(crate) shade: Option<Shade>,
     /// Integrator: raycast (one ray per pixel, shaded) or path (diffuse path tracing under a sky).
     #[arg(long, value_enum, default_value_t = Integrator::Raycast)]
-    integrator: Integrator,
+    pub(crate) integrator: Integrator,
     /// Path tracing: samples per pixel, at least 1 [default: 4].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-    spp: Option<u32>,
+    pub(crate) spp: Option<u32>,
     /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
     #[arg(long)]
-    bounces: Option<u32>,
+    pub(crate) bounces: Option<u32>,
     /// Random seed (path, distribution): the same seed gives the same image, whatever the
     /// thread count and the tracer [default: 1].
     #[arg(long)]
-    seed: Option<u64>,
+    pub(crate) seed: Option<u64>,
     /// Distribution: a×a stratified antialiasing samples per pixel [default: 1].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
-    aa: Option<u32>,
+    pub(crate) aa: Option<u32>,
     /// Distribution: N×N shadow samples per light per hit [default: 4; RTRPS uses 16].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
-    light_samples: Option<u32>,
+    pub(crate) light_samples: Option<u32>,
     /// Distribution: N×N diffuse bounce samples per hit, 0 for none [default: 0].
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=64))]
-    bounce_samples: Option<u32>,
+    pub(crate) bounce_samples: Option<u32>,
     /// A square area light x,y,z,size,power (horizontal, facing down, white, power in watts);
     /// repeatable; added to the scene's emissive meshes (path, distribution).
     #[arg(long, value_name = "X,Y,Z,SIZE,POWER", allow_hyphen_values = true)]
-    area_light: Vec<String>,
+    pub(crate) area_light: Vec<String>,
     /// Instant radiosity: VPLs wanted (Mora: 1000, 10000, 40000) [default: 1000].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000_000))]
-    vpls: Option<u32>,
+    pub(crate) vpls: Option<u32>,
     /// Instant radiosity: diffuse bounces of each photon (Mora: 1, 3, 5) [default: 1].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
-    vpl_bounces: Option<u32>,
+    pub(crate) vpl_bounces: Option<u32>,
     /// Instant radiosity: VPLs each camera hit sends shadow rays to [default: 64].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-    vpl_subset: Option<u32>,
+    pub(crate) vpl_subset: Option<u32>,
     /// Draw the tracer's per-ray cost instead of shading: nodes entered, tests, or ray/triangle
     /// tests, in false colour with a colour bar (the scale is printed too).
     #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
-    heatmap: Option<CostKind>,
-    /// Output PNG.
+    pub(crate) heatmap: Option<CostKind>,
+    /// Output image: .png (clamped, gamma 1/2.2) or .exr (linear radiance, float RGB; path,
+    /// distribution and instant radiosity only).
     #[arg(long, default_value = "raysift.png")]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
+    /// No progress bar or spinner (they are drawn only on a terminal, after about a second).
+    #[arg(long)]
+    pub(crate) quiet: bool,
     /// Print the work counters to stderr.
     #[arg(long)]
-    stats: bool,
+    pub(crate) stats: bool,
     #[command(flatten)]
     pub tracer: TracerArgs,
 }
@@ -132,7 +139,14 @@ fn heatmap_parser() -> impl clap::builder::TypedValueParser<Value = CostKind> {
 /// Refuses arguments the chosen integrator would ignore, and an image it cannot write, before any
 /// work is done.
 fn check(a: &RenderArgs) -> Result<()> {
-    check_png(&a.out)?;
+    if format_of(&a.out)? == Format::Exr
+        && (a.integrator == Integrator::Raycast || a.heatmap.is_some())
+    {
+        bail!(
+            "{}: .exr holds linear radiance, which ray casting and --heatmap do not make; use --integrator path, distribution or instant-radiosity, or name the file .png",
+            a.out.display()
+        );
+    }
     for l in &a.area_light {
         area_light(l)?;
     }
@@ -230,18 +244,93 @@ pub fn shade_name(s: Shade) -> &'static str {
     }
 }
 
-pub fn run(a: &RenderArgs) -> Result<()> {
-    check(a)?;
-    let mut tracer = make_tracer(&a.tracer)?;
-    let s = open_scene_or_default(a.scene.as_deref())?;
+/// The ids of the `render` arguments typed on the command line (not defaults), which a scene
+/// file's settings do not override.
+pub fn given_ids(m: &clap::ArgMatches) -> Vec<String> {
+    m.ids()
+        .filter(|id| m.value_source(id.as_str()) == Some(clap::parser::ValueSource::CommandLine))
+        .map(|id| id.as_str().to_string())
+        .collect()
+}
+
+pub fn run(a: &RenderArgs, given: &[String]) -> Result<()> {
+    crate::progress::set_quiet(a.quiet);
+    match a
+        .scene
+        .as_deref()
+        .filter(|s| crate::scenefile::is_scene_file(s))
+    {
+        Some(file) => {
+            let file = std::path::Path::new(file);
+            let f = crate::scenefile::read(file)?;
+            let a = crate::scenefile::apply(file, &f, a, given)?;
+            check(&a)?;
+            let make = make_tracer(&a.tracer)?;
+            let s = crate::scenefile::load(file, &f)?;
+            render_scene(&a, make, s)
+        }
+        None => {
+            check(a)?;
+            let make = make_tracer(&a.tracer)?;
+            let s = open_scene_or_default(a.scene.as_deref())?;
+            render_scene(a, make, s)
+        }
+    }
+}
+
+fn render_scene(
+    a: &RenderArgs,
+    mut tracer: Box<dyn raysift::Tracer>,
+    s: raysift::Scene,
+) -> Result<()> {
     let cam = camera_for(&s.bounds(), &a.view)?;
     let (w, h) = (a.view.width, a.view.height);
     let t0 = Instant::now();
-    let pb = spinner(format!("{}: rendering {w}×{h}", tracer.name()));
+    let pb = spinner(format!("{}: preparing {w}×{h}", tracer.name()));
     let prep = tracer.prepare_timed(&s)?;
+    pb.finish_and_clear();
+    let pixels = w as u64 * h as u64;
+    let extra = a
+        .area_light
+        .iter()
+        .map(|l| area_light(l))
+        .collect::<Result<Vec<_>>>()?;
+    let lights = render::light::Lights::new(&s, extra);
+    let plan = match a.integrator {
+        Integrator::Raycast => Plan::Raycast { pixels },
+        Integrator::Path => {
+            let d = render::path::PathConfig::default();
+            Plan::Path {
+                spp: a.spp.unwrap_or(d.spp),
+                bounces: a.bounces.unwrap_or(d.bounces),
+                pixels,
+            }
+        }
+        Integrator::Distribution => {
+            let d = render::distribution::DistConfig::default();
+            let ls = a.light_samples.unwrap_or(d.light_side) as u64;
+            let nb = a.bounce_samples.unwrap_or(d.bounce_side) as u64;
+            let nl = lights.lights.len().max(1) as u64;
+            Plan::Distribution {
+                per_hit: nl * ls * ls + nb * nb * (1 + nl),
+            }
+        }
+        Integrator::InstantRadiosity => Plan::Radiosity {
+            subset: a
+                .vpl_subset
+                .unwrap_or(render::radiosity::IrConfig::default().subset)
+                as u64,
+        },
+    };
+    let bar = RenderBar::new(plan);
+    let hook = |c| bar.on(c);
+    let inner = tracer;
+    let watched = render::progress::Watched::new(inner.as_ref(), &hook);
+    let tracer: &dyn raysift::Tracer = &watched;
+    let pb = &bar;
     if let Some(kind) = a.heatmap {
-        let m = heatmap::heatmap(&s, tracer.as_ref(), &cam, w, h, kind)?;
-        pb.finish_and_clear();
+        let m = heatmap::heatmap(&s, tracer, &cam, w, h, kind)?;
+        pb.finish();
         m.image.save_png(&a.out)?;
         let sc = m.scale;
         eprintln!(
@@ -281,12 +370,6 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let extra = a
-        .area_light
-        .iter()
-        .map(|l| area_light(l))
-        .collect::<Result<Vec<_>>>()?;
-    let lights = render::light::Lights::new(&s, extra);
     if a.integrator != Integrator::Raycast && a.integrator != Integrator::Path && lights.is_empty()
     {
         bail!("this integrator needs a light: the scene has no emissive material; add --area-light x,y,z,size,power");
@@ -301,13 +384,13 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             ..d
         };
         let (rad, nv, phases) =
-            render::radiosity::instant_radiosity(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
-        pb.finish_and_clear();
-        render::to_image(&rad, w, h).save_png(&a.out)?;
+            render::radiosity::instant_radiosity(&s, tracer, &cam, w, h, &lights, &cfg)?;
+        pb.finish();
+        write_radiance(&a.out, &rad, w, h)?;
         return report_phases(
             a,
             &s,
-            tracer.as_ref(),
+            tracer,
             &prep,
             t0,
             &phases,
@@ -326,13 +409,13 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             seed: a.seed.unwrap_or(d.seed),
         };
         let (rad, phases) =
-            render::distribution::distribution(&s, tracer.as_ref(), &cam, w, h, &lights, &cfg)?;
-        pb.finish_and_clear();
-        render::to_image(&rad, w, h).save_png(&a.out)?;
+            render::distribution::distribution(&s, tracer, &cam, w, h, &lights, &cfg)?;
+        pb.finish();
+        write_radiance(&a.out, &rad, w, h)?;
         return report_phases(
             a,
             &s,
-            tracer.as_ref(),
+            tracer,
             &prep,
             t0,
             &phases,
@@ -350,10 +433,9 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             seed: a.seed.unwrap_or(defaults.seed),
             ..defaults
         };
-        let (rad, per_depth) =
-            render::path::path_trace_lit(&s, tracer.as_ref(), &cam, w, h, &cfg, &lights)?;
-        pb.finish_and_clear();
-        render::to_image(&rad, w, h).save_png(&a.out)?;
+        let (rad, per_depth) = render::path::path_trace_lit(&s, tracer, &cam, w, h, &cfg, &lights)?;
+        pb.finish();
+        write_radiance(&a.out, &rad, w, h)?;
         let rays: u64 = per_depth.iter().map(|b| b.rays + b.shadow_rays).sum();
         let trace_ms: f64 = per_depth
             .iter()
@@ -413,8 +495,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         return Ok(());
     }
     let shade = a.shade.unwrap_or_default();
-    let (img, rs) = render::raycast(&s, tracer.as_ref(), &cam, w, h, shade, a.light)?;
-    pb.finish_and_clear();
+    let (img, rs) = render::raycast(&s, tracer, &cam, w, h, shade, a.light)?;
+    pb.finish();
     img.save_png(&a.out)?;
     let frame_ms = t0.elapsed().as_secs_f64() * 1e3;
     let mut passes = vec![("primary", &rs.primary)];

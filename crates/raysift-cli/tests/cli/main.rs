@@ -98,3 +98,4 @@ fn tracer_names() -> Vec<String> {
 mod commands;
 mod cones;
 mod errors;
+mod scenefile;

@@ -12,6 +12,7 @@ pub mod distribution;
 pub mod heatmap;
 pub mod light;
 pub mod path;
+pub mod progress;
 pub mod radiosity;
 
 use crate::error::{Error, Result};
