@@ -14,15 +14,18 @@ use glam::Vec3;
 use raysift::rays::{generate, Camera, Ray, RayBatch, RayLayout};
 use raysift::scene::animate::{Animation, Motion};
 use raysift::scene::{procedural, Scene};
-use raysift::tracer::Tracer;
 use raysift::tracers;
 use std::time::Instant;
 
 fn open(spec: &str) -> Scene {
-    let shared = ["../shared/scenes", "../../shared/scenes", "/work/shared/scenes"]
-        .iter()
-        .map(std::path::PathBuf::from)
-        .find(|p| p.is_dir());
+    let shared = [
+        "../shared/scenes",
+        "../../shared/scenes",
+        "/work/shared/scenes",
+    ]
+    .iter()
+    .map(std::path::PathBuf::from)
+    .find(|p| p.is_dir());
     if let Some(dir) = shared {
         let p = dir.join(spec);
         if p.exists() {
@@ -33,7 +36,9 @@ fn open(spec: &str) -> Scene {
 }
 
 fn opts(s: &[(&str, &str)]) -> Vec<(String, String)> {
-    s.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
+    s.iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
 }
 
 /// Camera hits at 256² and, from every `step`-th, a 16×16 shadow grid towards a square light
@@ -55,13 +60,28 @@ fn groups(scene: &Scene, origins: usize) -> (RayBatch, RayBatch) {
         let o = p + n * eps;
         for r in 0..16 {
             for c in 0..16 {
-                let y = centre + Vec3::new((c as f32 - 7.5) / 16.0 * 0.3 * e.x, 0.0, (r as f32 - 7.5) / 16.0 * 0.3 * e.z);
-                sh.push(Ray { origin: o, dir: y - o, tmin: 0.0, tmax: 1.0 });
+                let y = centre
+                    + Vec3::new(
+                        (c as f32 - 7.5) / 16.0 * 0.3 * e.x,
+                        0.0,
+                        (r as f32 - 7.5) / 16.0 * 0.3 * e.z,
+                    );
+                sh.push(Ray {
+                    origin: o,
+                    dir: y - o,
+                    tmin: 0.0,
+                    tmax: 1.0,
+                });
             }
         }
         for c in 0..64 {
             let (a, bb) = ((c % 8) as f32 + 0.5, (c / 8) as f32 + 0.5);
-            bo.push(Ray { origin: o, dir: generate::cosine_direction(n, a / 8.0, bb / 8.0), tmin: 0.0, tmax: f32::INFINITY });
+            bo.push(Ray {
+                origin: o,
+                dir: generate::cosine_direction(n, a / 8.0, bb / 8.0),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
         }
     }
     let mut sh = RayBatch::from_rays(sh);
@@ -77,7 +97,8 @@ fn table3() {
     for spec in ["bun_zipper.ply", "sponza.obj.gz", "dragon_vrip.ply.gz"] {
         let scene = open(spec);
         for (ls, centre) in [("1", "box"), ("2", "box"), ("2", "mean"), ("4", "box")] {
-            let mut t = tracers::create("rtrps", &opts(&[("leaf_size", ls), ("centre", centre)])).unwrap();
+            let mut t =
+                tracers::create("rtrps", &opts(&[("leaf_size", ls), ("centre", centre)])).unwrap();
             let st = t.prepare_timed(&scene).unwrap();
             let g = |k: &str| st.built.get(k);
             println!(
@@ -97,16 +118,34 @@ fn table3() {
 fn fig11(spec: &str, origins: usize) {
     let scene = open(spec);
     let (sh, bo) = groups(&scene, origins);
-    println!("scene {spec} ({} triangles): {} shadow rays (16x16 grids), {} bounce rays (8x8 grids)", scene.len(), sh.len(), bo.len());
+    println!(
+        "scene {spec} ({} triangles): {} shadow rays (16x16 grids), {} bounce rays (8x8 grids)",
+        scene.len(),
+        sh.len(),
+        bo.len()
+    );
     println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | rays reproduced | tri tests |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for (what, rays, occl) in [("shadow 16x16", &sh, true), ("bounce 8x8", &bo, false)] {
         for centre in ["box", "mean"] {
             let mut base = 0;
-            for (name, c, t) in [("all planes", "false", "false"), ("culling", "true", "false"), ("tree", "false", "true"), ("culling+tree", "true", "true")] {
-                let mut tr = tracers::create("rtrps", &opts(&[("culling", c), ("tree", t), ("centre", centre)])).unwrap();
+            for (name, c, t) in [
+                ("all planes", "false", "false"),
+                ("culling", "true", "false"),
+                ("tree", "false", "true"),
+                ("culling+tree", "true", "true"),
+            ] {
+                let mut tr = tracers::create(
+                    "rtrps",
+                    &opts(&[("culling", c), ("tree", t), ("centre", centre)]),
+                )
+                .unwrap();
                 tr.prepare(&scene).unwrap();
-                let w = if occl { tr.occluded_timed(&scene, rays).unwrap().1.work } else { tr.intersect_timed(&scene, rays).unwrap().1.work };
+                let w = if occl {
+                    tr.occluded_timed(&scene, rays).unwrap().1.work
+                } else {
+                    tr.intersect_timed(&scene, rays).unwrap().1.work
+                };
                 let (o, i) = (w.get("outline_tests"), w.get("internal_tests"));
                 if base == 0 {
                     base = o + i;
@@ -133,14 +172,23 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn table5(spec: &str, origins: usize) {
     let scene = open(spec);
     let (sh, _) = groups(&scene, origins);
-    println!("scene {spec} ({} triangles): {} shadow rays in {} 16x16 grids, {} threads", scene.len(), sh.len(), sh.len() / 256, rayon::current_num_threads());
+    println!(
+        "scene {spec} ({} triangles): {} shadow rays in {} 16x16 grids, {} threads",
+        scene.len(),
+        sh.len(),
+        sh.len() / 256,
+        rayon::current_num_threads()
+    );
     let contenders: Vec<(&str, &str, Vec<(String, String)>)> = vec![
         ("rtrps", "rtrps", vec![]),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
         ("dacrt", "dacrt", vec![]),
     ];
-    let mut live: Vec<_> = contenders.iter().map(|(_, n, o)| tracers::create(n, o).unwrap()).collect();
+    let mut live: Vec<_> = contenders
+        .iter()
+        .map(|(_, n, o)| tracers::create(n, o).unwrap())
+        .collect();
     let mut prep = vec![0.0; live.len()];
     for (k, t) in live.iter_mut().enumerate() {
         prep[k] = t.prepare_timed(&scene).unwrap().prepare_ms;
@@ -176,7 +224,10 @@ fn table6(spec: &str, frames: u32) {
         ("bvh rebuild", "bvh", vec![]),
         ("bvh refit", "bvh", opts(&[("update", "refit")])),
     ];
-    let mut live: Vec<_> = names.iter().map(|(_, n, o)| tracers::create(n, o).unwrap()).collect();
+    let mut live: Vec<_> = names
+        .iter()
+        .map(|(_, n, o)| tracers::create(n, o).unwrap())
+        .collect();
     let mut upd = vec![Vec::new(); live.len()];
     let mut tr = vec![Vec::new(); live.len()];
     for f in 0..frames {
@@ -195,7 +246,13 @@ fn table6(spec: &str, frames: u32) {
     println!("|---|---|---|---|---|");
     let tot = |k: usize| median(upd[k].clone()) + median(tr[k].clone());
     for (k, (name, _, _)) in names.iter().enumerate() {
-        println!("| {name} | {:.2} | {:.1} | {:.1} | {:.2} |", median(upd[k].clone()), median(tr[k].clone()), tot(k), tot(k) / tot(0));
+        println!(
+            "| {name} | {:.2} | {:.1} | {:.1} | {:.2} |",
+            median(upd[k].clone()),
+            median(tr[k].clone()),
+            tot(k),
+            tot(k) / tot(0)
+        );
     }
 }
 

@@ -32,8 +32,19 @@ fn grids(origins: &[Vec3], axis: Vec3, side: usize, spread: f32) -> RayBatch {
     for &o in origins {
         for i in 0..side {
             for j in 0..side {
-                let f = |k: usize| if side == 1 { 0.0 } else { (k as f32 / (side - 1) as f32 * 2.0 - 1.0) * spread };
-                rays.push(Ray { origin: o, dir: axis.normalize() + t * f(j) + s * f(i), tmin: 0.0, tmax: f32::INFINITY });
+                let f = |k: usize| {
+                    if side == 1 {
+                        0.0
+                    } else {
+                        (k as f32 / (side - 1) as f32 * 2.0 - 1.0) * spread
+                    }
+                };
+                rays.push(Ray {
+                    origin: o,
+                    dir: axis.normalize() + t * f(j) + s * f(i),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
             }
         }
     }
@@ -44,7 +55,9 @@ fn grids(origins: &[Vec3], axis: Vec3, side: usize, spread: f32) -> RayBatch {
 
 fn scene_of(name: &str, tris: &[[Vec3; 3]]) -> Scene {
     let positions = tris.iter().flatten().copied().collect();
-    let indices = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let indices = (0..tris.len() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
     Scene::from_meshes(name, vec![Mesh::new("m", positions, indices)]).unwrap()
 }
 
@@ -57,8 +70,16 @@ fn planes_through_vertices_edges_and_tangent() {
     for x in -3..=3 {
         for y in -3..=3 {
             let (x, y) = (x as f32, y as f32);
-            tris.push([Vec3::new(x, y, 4.0), Vec3::new(x + 1.0, y, 4.0), Vec3::new(x, y + 1.0, 4.0)]);
-            tris.push([Vec3::new(x, y, 6.0), Vec3::new(x + 0.5, y + 0.5, 6.5), Vec3::new(x, y + 1.0, 6.0)]);
+            tris.push([
+                Vec3::new(x, y, 4.0),
+                Vec3::new(x + 1.0, y, 4.0),
+                Vec3::new(x, y + 1.0, 4.0),
+            ]);
+            tris.push([
+                Vec3::new(x, y, 6.0),
+                Vec3::new(x + 0.5, y + 0.5, 6.5),
+                Vec3::new(x, y + 1.0, 6.0),
+            ]);
         }
     }
     let scene = scene_of("lattice", &tris);
@@ -68,7 +89,12 @@ fn planes_through_vertices_edges_and_tangent() {
             for j in 0..side {
                 // Directions through lattice points at z = 4: x, y integers.
                 let (x, y) = (j as f32 - (side / 2) as f32, i as f32 - (side / 2) as f32);
-                rays.push(Ray { origin: Vec3::ZERO, dir: Vec3::new(x, y, 4.0), tmin: 0.0, tmax: f32::INFINITY });
+                rays.push(Ray {
+                    origin: Vec3::ZERO,
+                    dir: Vec3::new(x, y, 4.0),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
             }
         }
         let mut b = RayBatch::from_rays(std::mem::take(&mut rays));
@@ -82,7 +108,13 @@ fn planes_through_vertices_edges_and_tangent() {
 fn grid_origin_inside_spheres() {
     let scene = procedural::icosphere(500);
     let v = scene.triangles().v0[7];
-    let origins = [Vec3::ZERO, v, v * 0.999, v * 1.001, Vec3::new(0.3, -0.2, 0.1)];
+    let origins = [
+        Vec3::ZERO,
+        v,
+        v * 0.999,
+        v * 1.001,
+        Vec3::new(0.3, -0.2, 0.1),
+    ];
     for axis in [Vec3::X, Vec3::new(1.0, 2.0, -0.5)] {
         check(&scene, &grids(&origins, axis, 8, 0.9));
         check(&scene, &grids(&origins, axis, 5, 3.0));
@@ -93,7 +125,9 @@ fn grid_origin_inside_spheres() {
 #[test]
 fn packets_of_one_ray() {
     let scene = procedural::icosphere(200);
-    let origins: Vec<Vec3> = (0..40).map(|k| Vec3::new(3.0, k as f32 * 0.05 - 1.0, 0.2)).collect();
+    let origins: Vec<Vec3> = (0..40)
+        .map(|k| Vec3::new(3.0, k as f32 * 0.05 - 1.0, 0.2))
+        .collect();
     check(&scene, &grids(&origins, -Vec3::X, 1, 0.0));
     let cam = Camera::framing(&scene.bounds(), 40.0, 1.0).rays(1, 9);
     check(&scene, &cam);
@@ -116,7 +150,12 @@ fn grids_crossing_the_scene_bounds() {
         let (p, n) = generate::hit_frame(&scene, &cam, &hits, i);
         for c in 0..side * side {
             let (a, bb) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
-            rays.push(Ray { origin: p + n * eps, dir: generate::cosine_direction(n, a / side as f32, bb / side as f32), tmin: 0.0, tmax: f32::INFINITY });
+            rays.push(Ray {
+                origin: p + n * eps,
+                dir: generate::cosine_direction(n, a / side as f32, bb / side as f32),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
         }
     }
     let mut batch = RayBatch::from_rays(rays);
@@ -132,7 +171,12 @@ fn grids_crossing_the_scene_bounds() {
         for r in 0..16 {
             for c in 0..16 {
                 let y = centre + Vec3::new(c as f32 - 7.5, 0.0, r as f32 - 7.5) * 0.02;
-                rays.push(Ray { origin: o, dir: y - o, tmin: 0.0, tmax: 1.0 });
+                rays.push(Ray {
+                    origin: o,
+                    dir: y - o,
+                    tmin: 0.0,
+                    tmax: 1.0,
+                });
             }
         }
     }
@@ -145,7 +189,11 @@ fn grids_crossing_the_scene_bounds() {
 /// `naive` on the moved scene every frame, on grids, camera tiles and random rays.
 #[test]
 fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
-    let parts = [procedural::icosphere(300), procedural::soup(200, 4), procedural::icosphere(80)];
+    let parts = [
+        procedural::icosphere(300),
+        procedural::soup(200, 4),
+        procedural::icosphere(80),
+    ];
     let meshes: Vec<Mesh> = parts
         .iter()
         .enumerate()
@@ -157,14 +205,24 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
         .collect();
     let scene = Scene::from_meshes("three parts", meshes).unwrap();
     let cam = Camera::framing(&scene.bounds(), 50.0, 1.0).rays(40, 40);
-    let origins: Vec<Vec3> = (0..12).map(|k| Vec3::new(k as f32 * 0.3 - 1.8, 0.2, 3.0)).collect();
+    let origins: Vec<Vec3> = (0..12)
+        .map(|k| Vec3::new(k as f32 * 0.3 - 1.8, 0.2, 3.0))
+        .collect();
     let g = grids(&origins, -Vec3::Z, 8, 0.5);
     let random = generate::random_in_box(&scene.bounds(), 600, 3);
     let step = |s: &mut Scene, f: usize| {
         let spin = Quat::from_rotation_y(0.4 * f as f32) * Quat::from_rotation_x(0.3);
-        s.set_transform(1, Affine3A::from_rotation_translation(spin, Vec3::new(0.0, 0.1 * f as f32, 0.0))).unwrap();
+        s.set_transform(
+            1,
+            Affine3A::from_rotation_translation(spin, Vec3::new(0.0, 0.1 * f as f32, 0.0)),
+        )
+        .unwrap();
         if f % 2 == 0 {
-            let pos: Vec<Vec3> = s.meshes()[2].positions.iter().map(|p| *p * (1.0 + 0.1 * f as f32)).collect();
+            let pos: Vec<Vec3> = s.meshes()[2]
+                .positions
+                .iter()
+                .map(|p| *p * (1.0 + 0.1 * f as f32))
+                .collect();
             s.replace_positions(2, pos).unwrap();
         }
     };
@@ -178,15 +236,37 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
     let mut t = Rtrps::new(Default::default()).unwrap();
     t.prepare(&scene).unwrap();
     for f in 1..5 {
-        scene.set_transform(1, Affine3A::from_rotation_translation(Quat::from_rotation_z(f as f32), Vec3::Y * f as f32)).unwrap();
+        scene
+            .set_transform(
+                1,
+                Affine3A::from_rotation_translation(
+                    Quat::from_rotation_z(f as f32),
+                    Vec3::Y * f as f32,
+                ),
+            )
+            .unwrap();
         let st = t.prepare(&scene).unwrap();
-        assert_eq!((st.built.get("rebuilt"), st.built.get("parts_moved"), st.built.get("leaves_refit")), (0, 1, 0));
+        assert_eq!(
+            (
+                st.built.get("rebuilt"),
+                st.built.get("parts_moved"),
+                st.built.get("leaves_refit")
+            ),
+            (0, 1, 0)
+        );
         t.spheres().validate(&scene).unwrap();
     }
-    let pos: Vec<Vec3> = scene.meshes()[0].positions.iter().map(|p| *p * 2.0 + Vec3::X).collect();
+    let pos: Vec<Vec3> = scene.meshes()[0]
+        .positions
+        .iter()
+        .map(|p| *p * 2.0 + Vec3::X)
+        .collect();
     scene.replace_positions(0, pos).unwrap();
     let st = t.prepare(&scene).unwrap();
-    assert_eq!(st.built.get("leaves_refit"), t.spheres().parts[0].leaves.len() as u64);
+    assert_eq!(
+        st.built.get("leaves_refit"),
+        t.spheres().parts[0].leaves.len() as u64
+    );
     t.spheres().validate(&scene).unwrap();
 }
 
@@ -195,10 +275,15 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
 #[test]
 fn counters_split_plane_tests() {
     let scene = procedural::icosphere(2000);
-    let origins: Vec<Vec3> = (0..20).map(|k| Vec3::new(3.0, k as f32 * 0.1 - 1.0, 0.5)).collect();
+    let origins: Vec<Vec3> = (0..20)
+        .map(|k| Vec3::new(3.0, k as f32 * 0.1 - 1.0, 0.5))
+        .collect();
     let rays = grids(&origins, -Vec3::X, 16, 0.4);
     let run = |opts: &[(&str, &str)]| {
-        let opts: Vec<(String, String)> = opts.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+        let opts: Vec<(String, String)> = opts
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
         let mut t = tracers::create("rtrps", &opts).unwrap();
         t.prepare(&scene).unwrap();
         let (h, st) = t.intersect_timed(&scene, &rays).unwrap();

@@ -165,7 +165,16 @@ pub fn fan_bound(r: f32, dist: f32, slack: f32, e: f32) -> f32 {
 /// or when the sphere lies entirely before `tmin` or after `tmax` along the ray (with a relative
 /// margin of `2^-12` on `t`). `dd = d·d`, `dl = |d|`.
 #[inline(always)]
-pub fn ray_sphere(o: glam::Vec3, d: glam::Vec3, dd: f32, dl: f32, c: glam::Vec3, r: f32, tmin: f32, tmax: f32) -> bool {
+pub fn ray_sphere(
+    o: glam::Vec3,
+    d: glam::Vec3,
+    dd: f32,
+    dl: f32,
+    c: glam::Vec3,
+    r: f32,
+    tmin: f32,
+    tmax: f32,
+) -> bool {
     let w = c - o;
     let x = w.cross(d);
     if x.length_squared() > r * r * dd {
@@ -201,7 +210,10 @@ mod tests {
         let f = fan_of(&[0.3, 0.2, 0.1]);
         assert!(f.sorted && f.order[..3] == [2, 1, 0]);
         assert!(!fan_of(&[0.1, 0.3, 0.2]).sorted);
-        assert!(!fan_of(&[0.0, 1.5, 3.0, 4.0]).sorted, "span over a half-turn");
+        assert!(
+            !fan_of(&[0.0, 1.5, 3.0, 4.0]).sorted,
+            "span over a half-turn"
+        );
     }
 
     #[test]
@@ -210,7 +222,9 @@ mod tests {
         let f = fan_of(&angles);
         let mut rng = 12345u64;
         let mut next = || {
-            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((rng >> 40) as f32 / (1u64 << 24) as f32) * 8.0 - 4.0
         };
         for _ in 0..20000 {
@@ -239,10 +253,55 @@ mod tests {
     fn ray_sphere_is_conservative_on_tangent_and_behind() {
         use glam::Vec3;
         let (o, d) = (Vec3::ZERO, Vec3::X);
-        assert!(ray_sphere(o, d, 1.0, 1.0, Vec3::new(5.0, 1.0, 0.0), 1.0, 0.0, f32::INFINITY));
-        assert!(!ray_sphere(o, d, 1.0, 1.0, Vec3::new(5.0, 1.01, 0.0), 1.0, 0.0, f32::INFINITY));
-        assert!(!ray_sphere(o, d, 1.0, 1.0, Vec3::new(-5.0, 0.0, 0.0), 1.0, 0.0, f32::INFINITY));
-        assert!(ray_sphere(o, d, 1.0, 1.0, Vec3::new(-0.5, 0.0, 0.0), 1.0, 0.0, f32::INFINITY));
-        assert!(!ray_sphere(o, d, 1.0, 1.0, Vec3::new(5.0, 0.0, 0.0), 1.0, 0.0, 3.0));
+        assert!(ray_sphere(
+            o,
+            d,
+            1.0,
+            1.0,
+            Vec3::new(5.0, 1.0, 0.0),
+            1.0,
+            0.0,
+            f32::INFINITY
+        ));
+        assert!(!ray_sphere(
+            o,
+            d,
+            1.0,
+            1.0,
+            Vec3::new(5.0, 1.01, 0.0),
+            1.0,
+            0.0,
+            f32::INFINITY
+        ));
+        assert!(!ray_sphere(
+            o,
+            d,
+            1.0,
+            1.0,
+            Vec3::new(-5.0, 0.0, 0.0),
+            1.0,
+            0.0,
+            f32::INFINITY
+        ));
+        assert!(ray_sphere(
+            o,
+            d,
+            1.0,
+            1.0,
+            Vec3::new(-0.5, 0.0, 0.0),
+            1.0,
+            0.0,
+            f32::INFINITY
+        ));
+        assert!(!ray_sphere(
+            o,
+            d,
+            1.0,
+            1.0,
+            Vec3::new(5.0, 0.0, 0.0),
+            1.0,
+            0.0,
+            3.0
+        ));
     }
 }

@@ -156,7 +156,10 @@ fn leaf_sphere(tris: impl Iterator<Item = [Vec3; 3]> + Clone, centre: Centre) ->
     for t in tris {
         let [a, b, cc] = t.map(|v| v.as_dvec3());
         let ct = (a.min(b).min(cc) + a.max(b).max(cc)) * 0.5;
-        let rho = (a - ct).length().max((b - ct).length()).max((cc - ct).length());
+        let rho = (a - ct)
+            .length()
+            .max((b - ct).length())
+            .max((cc - ct).length());
         r = r.max((ct - c).length() + 3f64.sqrt() * rho);
     }
     (c.as_vec3(), round_up(r))
@@ -237,7 +240,8 @@ impl SphereTree {
                 let mut l = leaves.start;
                 while l < leaves.end {
                     let e = (l + cfg.cluster as u32).min(leaves.end);
-                    let (c, r) = parent_sphere((l..e).map(|k| (t.leaf_c[k as usize], t.leaf_r[k as usize])));
+                    let (c, r) =
+                        parent_sphere((l..e).map(|k| (t.leaf_c[k as usize], t.leaf_r[k as usize])));
                     t.inner_c.push(c);
                     t.inner_r.push(r);
                     t.inner_leaves.push([l, e]);
@@ -300,7 +304,8 @@ impl SphereTree {
         let cfg = self.cfg.expect("built");
         let mesh = &scene.meshes()[self.parts[p].mesh as usize];
         let first = scene.mesh_prims(self.parts[p].mesh as usize).start as u32;
-        let local = |id: u32| mesh.indices[(id - first) as usize].map(|i| mesh.positions[i as usize]);
+        let local =
+            |id: u32| mesh.indices[(id - first) as usize].map(|i| mesh.positions[i as usize]);
         for l in self.parts[p].leaves.clone() {
             let [s, e] = self.leaf_tris[l as usize];
             let ids = &self.tris[s as usize..e as usize];
@@ -315,15 +320,24 @@ impl SphereTree {
         let part = &self.parts[p];
         for k in part.inner.clone() {
             let [l, e] = self.inner_leaves[k as usize];
-            let (c, r) = parent_sphere((l..e).map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])));
+            let (c, r) =
+                parent_sphere((l..e).map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])));
             self.inner_c[k as usize] = c;
             self.inner_r[k as usize] = r;
         }
         let leaves = part.leaves.clone();
         let (c, r) = if part.inner.is_empty() {
-            parent_sphere(leaves.clone().map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])))
+            parent_sphere(
+                leaves
+                    .clone()
+                    .map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])),
+            )
         } else {
-            parent_sphere(part.inner.clone().map(|k| (self.inner_c[k as usize], self.inner_r[k as usize])))
+            parent_sphere(
+                part.inner
+                    .clone()
+                    .map(|k| (self.inner_c[k as usize], self.inner_r[k as usize])),
+            )
         };
         let extent = leaves
             .map(|k| self.leaf_c[k as usize].abs().max_element() + self.leaf_r[k as usize])
@@ -351,7 +365,11 @@ impl SphereTree {
             if si.is_finite() && si * stretch(a) < 1e6 {
                 let t = -(ai * xf.translation.as_dvec3());
                 part.inv = Some(Affine3A::from_mat3_translation(
-                    glam::Mat3::from_cols(ai.x_axis.as_vec3(), ai.y_axis.as_vec3(), ai.z_axis.as_vec3()),
+                    glam::Mat3::from_cols(
+                        ai.x_axis.as_vec3(),
+                        ai.y_axis.as_vec3(),
+                        ai.z_axis.as_vec3(),
+                    ),
                     t.as_vec3(),
                 ));
                 part.sigma_inv = si as f32;
@@ -364,7 +382,11 @@ impl SphereTree {
 
     fn place_root(&mut self) {
         let (c, r) = parent_sphere(self.parts.iter().map(|p| (p.world_centre, p.world_radius)));
-        (self.root_c, self.root_r) = if self.parts.is_empty() { (Vec3::ZERO, 0.0) } else { (c, r) };
+        (self.root_c, self.root_r) = if self.parts.is_empty() {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (c, r)
+        };
     }
 
     /// Spheres in all (scene, parts, inner, leaves).
@@ -406,7 +428,9 @@ impl SphereTree {
                             if k & 4 == 0 { b.min.z } else { b.max.z },
                         );
                         if (corner - c).length() > r {
-                            return Err(format!("part {pi} leaf {l}: triangle {id}'s box pokes out"));
+                            return Err(format!(
+                                "part {pi} leaf {l}: triangle {id}'s box pokes out"
+                            ));
                         }
                     }
                 }

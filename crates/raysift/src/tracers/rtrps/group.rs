@@ -5,8 +5,8 @@
 
 use super::{random, Config, Counts};
 use crate::accel::spheres::{SphereTree, SLACK};
-use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
 use crate::geom::intersect_triangle;
+use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut, HitsMut};
@@ -88,7 +88,8 @@ impl Scratch {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         self.g.capacity() * 12
-            + (self.bt.capacity() + self.bp.capacity() + self.bu.capacity() + self.bv.capacity()) * 4
+            + (self.bt.capacity() + self.bp.capacity() + self.bu.capacity() + self.bv.capacity())
+                * 4
             + self.frames.capacity() * std::mem::size_of::<Frame>()
             + std::mem::size_of::<Self>()
     }
@@ -160,7 +161,15 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
 /// `parent` or, with the sign rule, planes whose answer decides where to look; returns the hit
 /// planes (sorted positions) among `parent`'s.
 #[inline]
-fn family(fan: &PlaneFan, c: (f32, f32), bound: f32, e: f32, parent: u64, cfg: &Config, n: &mut Counts) -> u64 {
+fn family(
+    fan: &PlaneFan,
+    c: (f32, f32),
+    bound: f32,
+    e: f32,
+    parent: u64,
+    cfg: &Config,
+    n: &mut Counts,
+) -> u64 {
     if parent == 0 {
         return 0;
     }
@@ -238,7 +247,15 @@ fn family(fan: &PlaneFan, c: (f32, f32), bound: f32, e: f32, parent: u64, cfg: &
 /// Both fans against a sphere (grid-frame centre `c`, radius `r`, margin `e`): the hit rows and
 /// columns among `parent`'s, or `None` when either family misses.
 #[inline]
-fn sphere(s: &Scratch, c: Vec3, r: f32, e: f32, parent: (u64, u64), cfg: &Config, n: &mut Counts) -> Option<(u64, u64)> {
+fn sphere(
+    s: &Scratch,
+    c: Vec3,
+    r: f32,
+    e: f32,
+    parent: (u64, u64),
+    cfg: &Config,
+    n: &mut Counts,
+) -> Option<(u64, u64)> {
     n.spheres_visited += 1;
     let dist = c.length();
     let rb = fan_bound(r, dist, s.rows.slack, e);
@@ -270,8 +287,13 @@ pub fn trace(
             for j in 0..g.cols {
                 let r = g.ray(i, j);
                 match &mut out {
-                    Out::Hits(h) => random::closest(tree, soup, rays, r, r - start, h, cost.as_deref_mut(), n),
-                    Out::Occluded(b) => b[r - start] = random::any(tree, soup, rays, r, r - start, cost.as_deref_mut(), n),
+                    Out::Hits(h) => {
+                        random::closest(tree, soup, rays, r, r - start, h, cost.as_deref_mut(), n)
+                    }
+                    Out::Occluded(b) => {
+                        b[r - start] =
+                            random::any(tree, soup, rays, r, r - start, cost.as_deref_mut(), n)
+                    }
                 }
             }
         }
@@ -295,12 +317,29 @@ pub fn trace(
     let o64 = o.as_dvec3();
     s.frames.clear();
     for p in &tree.parts {
-        let a = [p.xf.matrix3.x_axis, p.xf.matrix3.y_axis, p.xf.matrix3.z_axis].map(|c| DVec3::from(Vec3::from(c)));
+        let a = [
+            p.xf.matrix3.x_axis,
+            p.xf.matrix3.y_axis,
+            p.xf.matrix3.z_axis,
+        ]
+        .map(|c| DVec3::from(Vec3::from(c)));
         let t = DVec3::from(Vec3::from(p.xf.translation));
         let m = r64.map(|row| DVec3::new(row.dot(a[0]), row.dot(a[1]), row.dot(a[2])).as_vec3());
-        let b = DVec3::new(r64[0].dot(t - o64), r64[1].dot(t - o64), r64[2].dot(t - o64)).as_vec3();
-        let scale = p.sigma * p.extent + Vec3::from(p.xf.translation).abs().max_element() + o.abs().max_element();
-        s.frames.push(Frame { m, b, sigma: p.sigma, e: 2.0 * SLACK * scale });
+        let b = DVec3::new(
+            r64[0].dot(t - o64),
+            r64[1].dot(t - o64),
+            r64[2].dot(t - o64),
+        )
+        .as_vec3();
+        let scale = p.sigma * p.extent
+            + Vec3::from(p.xf.translation).abs().max_element()
+            + o.abs().max_element();
+        s.frames.push(Frame {
+            m,
+            b,
+            sigma: p.sigma,
+            e: 2.0 * SLACK * scale,
+        });
     }
     let nr = g.rows * cols;
     let closest = matches!(out, Out::Hits(_));
@@ -324,7 +363,8 @@ pub fn trace(
     let root = {
         let w = (tree.root_c.as_dvec3() - o64).as_vec3();
         let c = Vec3::new(frame[0].dot(w), frame[1].dot(w), frame[2].dot(w));
-        let e = 2.0 * SLACK * (tree.root_c.abs().max_element() + tree.root_r + o.abs().max_element());
+        let e =
+            2.0 * SLACK * (tree.root_c.abs().max_element() + tree.root_r + o.abs().max_element());
         sphere(s, c, tree.root_r, e, full, cfg, n)
     };
     let Some(pm0) = root.filter(|_| !tree.parts.is_empty()) else {
@@ -332,11 +372,32 @@ pub fn trace(
     };
     for (pi, part) in tree.parts.iter().enumerate() {
         let f = s.frames[pi];
-        let Some(pm) = sphere(s, f.apply(part.centre), part.radius * f.sigma, f.e, pm0, cfg, n) else {
+        let Some(pm) = sphere(
+            s,
+            f.apply(part.centre),
+            part.radius * f.sigma,
+            f.e,
+            pm0,
+            cfg,
+            n,
+        ) else {
             continue;
         };
-        let mut leaf = |l: usize, s: &mut Scratch, pm: (u64, u64), n: &mut Counts, out: &mut Out<'_, '_>, live: &mut usize| {
-            let Some((rm, cm)) = sphere(s, f.apply(tree.leaf_c[l]), tree.leaf_r[l] * f.sigma, f.e, pm, cfg, n) else {
+        let mut leaf = |l: usize,
+                        s: &mut Scratch,
+                        pm: (u64, u64),
+                        n: &mut Counts,
+                        out: &mut Out<'_, '_>,
+                        live: &mut usize| {
+            let Some((rm, cm)) = sphere(
+                s,
+                f.apply(tree.leaf_c[l]),
+                tree.leaf_r[l] * f.sigma,
+                f.e,
+                pm,
+                cfg,
+                n,
+            ) else {
                 return;
             };
             let [t0, t1] = tree.leaf_tris[l];
@@ -366,7 +427,15 @@ pub fn trace(
                         Out::Hits(_) => {
                             for &p in ids {
                                 let pu = p as usize;
-                                if let Some(h) = intersect_triangle(ro, rd, soup.v0[pu], soup.v1[pu], soup.v2[pu], tmin, s.bt[k]) {
+                                if let Some(h) = intersect_triangle(
+                                    ro,
+                                    rd,
+                                    soup.v0[pu],
+                                    soup.v1[pu],
+                                    soup.v2[pu],
+                                    tmin,
+                                    s.bt[k],
+                                ) {
                                     if closer(h.t, p, s.bt[k], s.bp[k]) {
                                         (s.bt[k], s.bp[k], s.bu[k], s.bv[k]) = (h.t, p, h.u, h.v);
                                     }
@@ -377,7 +446,17 @@ pub fn trace(
                             let tmax = rays.tmax[r];
                             for &p in ids {
                                 let pu = p as usize;
-                                if intersect_triangle(ro, rd, soup.v0[pu], soup.v1[pu], soup.v2[pu], tmin, tmax).is_some() {
+                                if intersect_triangle(
+                                    ro,
+                                    rd,
+                                    soup.v0[pu],
+                                    soup.v1[pu],
+                                    soup.v2[pu],
+                                    tmin,
+                                    tmax,
+                                )
+                                .is_some()
+                                {
                                     o[r - start] = true;
                                     s.done[i] |= 1 << j;
                                     *live -= 1;
@@ -399,7 +478,15 @@ pub fn trace(
         } else {
             for k in part.inner.clone() {
                 let k = k as usize;
-                let Some(km) = sphere(s, f.apply(tree.inner_c[k]), tree.inner_r[k] * f.sigma, f.e, pm, cfg, n) else {
+                let Some(km) = sphere(
+                    s,
+                    f.apply(tree.inner_c[k]),
+                    tree.inner_r[k] * f.sigma,
+                    f.e,
+                    pm,
+                    cfg,
+                    n,
+                ) else {
                     continue;
                 };
                 let [l0, l1] = tree.inner_leaves[k];

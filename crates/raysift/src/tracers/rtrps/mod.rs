@@ -54,7 +54,9 @@ use crate::accel::spheres::{BuildConfig, Centre, SphereTree};
 use crate::error::{Error, Result};
 use crate::rays::{HitBatch, RayBatch, RayLayout};
 use crate::scene::{Change, Scene, Stamp};
-use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, CounterSet, RayCost, Stats, Tally, Tracer};
+use crate::tracer::{
+    par_occlusion_chunks, par_ray_chunks, CounterDocs, CounterSet, RayCost, Stats, Tally, Tracer,
+};
 use crate::tracers::{OptionDoc, Preset};
 use serde::{Deserialize, Serialize};
 
@@ -114,13 +116,19 @@ impl Config {
     fn check(&self) -> Result<()> {
         let bad = |what: &str| Err(Error::Invalid(format!("tracer rtrps: {what}")));
         if !(1..=64).contains(&self.leaf_size) {
-            return bad(&format!("leaf_size must be in 1..=64, got {}", self.leaf_size));
+            return bad(&format!(
+                "leaf_size must be in 1..=64, got {}",
+                self.leaf_size
+            ));
         }
         if !(1..=64).contains(&self.packet) {
             return bad(&format!("packet must be in 1..=64, got {}", self.packet));
         }
         if self.grid_side > 64 {
-            return bad(&format!("grid_side must be in 0..=64, got {}", self.grid_side));
+            return bad(&format!(
+                "grid_side must be in 0..=64, got {}",
+                self.grid_side
+            ));
         }
         Ok(())
     }
@@ -136,26 +144,74 @@ impl Config {
 
 /// One line per option.
 pub const OPTION_DOCS: &[OptionDoc] = &[
-    OptionDoc { key: "mode", doc: "planes (groups as ray-planes, other rays alone) or random (every ray alone)" },
-    OptionDoc { key: "culling", doc: "frustum culling by the outermost planes (§3.1.2)" },
-    OptionDoc { key: "tree", doc: "binary-tree plane order (§3.1.3)" },
-    OptionDoc { key: "leaf_size", doc: "triangles per leaf sphere (1..=64)" },
-    OptionDoc { key: "cluster", doc: "leaves per inner sphere (0: none, the paper's depth 3)" },
-    OptionDoc { key: "centre", doc: "leaf sphere centre: box (of its vertices) or mean" },
-    OptionDoc { key: "packet", doc: "tile side for pinhole images (1..=64)" },
-    OptionDoc { key: "grid_side", doc: "cut every batch into consecutive groups of grid_side² rays (0: by layout)" },
+    OptionDoc {
+        key: "mode",
+        doc: "planes (groups as ray-planes, other rays alone) or random (every ray alone)",
+    },
+    OptionDoc {
+        key: "culling",
+        doc: "frustum culling by the outermost planes (§3.1.2)",
+    },
+    OptionDoc {
+        key: "tree",
+        doc: "binary-tree plane order (§3.1.3)",
+    },
+    OptionDoc {
+        key: "leaf_size",
+        doc: "triangles per leaf sphere (1..=64)",
+    },
+    OptionDoc {
+        key: "cluster",
+        doc: "leaves per inner sphere (0: none, the paper's depth 3)",
+    },
+    OptionDoc {
+        key: "centre",
+        doc: "leaf sphere centre: box (of its vertices) or mean",
+    },
+    OptionDoc {
+        key: "packet",
+        doc: "tile side for pinhole images (1..=64)",
+    },
+    OptionDoc {
+        key: "grid_side",
+        doc: "cut every batch into consecutive groups of grid_side² rays (0: by layout)",
+    },
 ];
 
 /// Configurations the conformance suite checks besides the defaults.
 pub const PRESETS: &[Preset] = &[
-    Preset { name: "random rays", opts: &[("mode", "random")] },
-    Preset { name: "all planes", opts: &[("culling", "false"), ("tree", "false")] },
-    Preset { name: "culling only", opts: &[("tree", "false")] },
-    Preset { name: "tree only, mean centres, no inner spheres", opts: &[("culling", "false"), ("centre", "mean"), ("cluster", "0")] },
-    Preset { name: "any batch as 3x3 groups, leaves of one", opts: &[("grid_side", "3"), ("leaf_size", "1")] },
-    Preset { name: "any batch as 8x8 groups", opts: &[("grid_side", "8"), ("cluster", "4")] },
-    Preset { name: "packets of one ray", opts: &[("grid_side", "1"), ("packet", "1")] },
-    Preset { name: "4x4 tiles, big leaves", opts: &[("packet", "4"), ("leaf_size", "7")] },
+    Preset {
+        name: "random rays",
+        opts: &[("mode", "random")],
+    },
+    Preset {
+        name: "all planes",
+        opts: &[("culling", "false"), ("tree", "false")],
+    },
+    Preset {
+        name: "culling only",
+        opts: &[("tree", "false")],
+    },
+    Preset {
+        name: "tree only, mean centres, no inner spheres",
+        opts: &[("culling", "false"), ("centre", "mean"), ("cluster", "0")],
+    },
+    Preset {
+        name: "any batch as 3x3 groups, leaves of one",
+        opts: &[("grid_side", "3"), ("leaf_size", "1")],
+    },
+    Preset {
+        name: "any batch as 8x8 groups",
+        opts: &[("grid_side", "8"), ("cluster", "4")],
+    },
+    Preset {
+        name: "packets of one ray",
+        opts: &[("grid_side", "1"), ("packet", "1")],
+    },
+    Preset {
+        name: "4x4 tiles, big leaves",
+        opts: &[("packet", "4"), ("leaf_size", "7")],
+    },
 ];
 
 crate::counters! {
@@ -246,7 +302,9 @@ impl Rtrps {
             l => l,
         };
         match layout {
-            RayLayout::OriginGrids { side } if (1..=64).contains(&side) => Plan::Grids(side as usize),
+            RayLayout::OriginGrids { side } if (1..=64).contains(&side) => {
+                Plan::Grids(side as usize)
+            }
             RayLayout::Pinhole { width, height, .. } if width as usize * height as usize == n => {
                 Plan::Tiles(width as usize)
             }
@@ -263,13 +321,24 @@ impl Rtrps {
     }
 
     /// The groups of chunk `range` under `plan`, and (through `alone`) the rays left out.
-    fn groups(&self, plan: Plan, range: std::ops::Range<usize>, mut f: impl FnMut(GroupSpec), mut alone: impl FnMut(usize)) {
+    fn groups(
+        &self,
+        plan: Plan,
+        range: std::ops::Range<usize>,
+        mut f: impl FnMut(GroupSpec),
+        mut alone: impl FnMut(usize),
+    ) {
         match plan {
             Plan::Random => range.for_each(alone),
             Plan::Grids(s) => {
                 let mut b = range.start;
                 while b + s * s <= range.end {
-                    f(GroupSpec { base: b, stride: s, rows: s, cols: s });
+                    f(GroupSpec {
+                        base: b,
+                        stride: s,
+                        rows: s,
+                        cols: s,
+                    });
                     b += s * s;
                 }
                 (b..range.end).for_each(&mut alone);
@@ -278,7 +347,12 @@ impl Rtrps {
                 let rows = range.len() / w;
                 let p = self.cfg.packet;
                 for tx in (0..w).step_by(p) {
-                    f(GroupSpec { base: range.start + tx, stride: w, rows, cols: p.min(w - tx) });
+                    f(GroupSpec {
+                        base: range.start + tx,
+                        stride: w,
+                        rows,
+                        cols: p.min(w - tx),
+                    });
                 }
             }
         }
@@ -323,39 +397,115 @@ impl Tracer for Rtrps {
         Ok(Stats::prepared(&built, t.bytes()))
     }
 
-    fn intersect(&self, scene: &Scene, rays: &RayBatch, hits: &mut HitBatch, cost: Option<&mut RayCost>) -> Result<Stats> {
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
         self.stamp.check(scene, self.name())?;
         let plan = self.plan(rays);
         let soup = scene.triangles();
-        let tally: Tally<Counts> = par_ray_chunks(rays, hits, cost, self.chunk(plan), |range, mut out, mut cost| {
-            let mut c = Counts::default();
-            let mut scratch = group::Scratch::new();
-            let start = range.start;
-            let mut lone = Vec::new();
-            self.groups(plan, range, |g| group::trace(&self.tree, &self.cfg, soup, rays, g, start, &mut scratch, group::Out::Hits(&mut out), cost.as_mut(), &mut c), |i| lone.push(i));
-            for i in lone {
-                random::closest(&self.tree, soup, rays, i, i - start, &mut out, cost.as_mut(), &mut c);
-            }
-            Tally { counts: c, peak_bytes: scratch.bytes() as u64 }
-        });
+        let tally: Tally<Counts> = par_ray_chunks(
+            rays,
+            hits,
+            cost,
+            self.chunk(plan),
+            |range, mut out, mut cost| {
+                let mut c = Counts::default();
+                let mut scratch = group::Scratch::new();
+                let start = range.start;
+                let mut lone = Vec::new();
+                self.groups(
+                    plan,
+                    range,
+                    |g| {
+                        group::trace(
+                            &self.tree,
+                            &self.cfg,
+                            soup,
+                            rays,
+                            g,
+                            start,
+                            &mut scratch,
+                            group::Out::Hits(&mut out),
+                            cost.as_mut(),
+                            &mut c,
+                        )
+                    },
+                    |i| lone.push(i),
+                );
+                for i in lone {
+                    random::closest(
+                        &self.tree,
+                        soup,
+                        rays,
+                        i,
+                        i - start,
+                        &mut out,
+                        cost.as_mut(),
+                        &mut c,
+                    );
+                }
+                Tally {
+                    counts: c,
+                    peak_bytes: scratch.bytes() as u64,
+                }
+            },
+        );
         Ok(tally.into_stats(rays.len()))
     }
 
-    fn occluded(&self, scene: &Scene, rays: &RayBatch, occluded: &mut Vec<bool>, cost: Option<&mut RayCost>) -> Result<Stats> {
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
         self.stamp.check(scene, self.name())?;
         let plan = self.plan(rays);
         let soup = scene.triangles();
-        let tally: Tally<Counts> = par_occlusion_chunks(rays, occluded, cost, self.chunk(plan), |range, out, mut cost| {
-            let mut c = Counts::default();
-            let mut scratch = group::Scratch::new();
-            let start = range.start;
-            let mut lone = Vec::new();
-            self.groups(plan, range, |g| group::trace(&self.tree, &self.cfg, soup, rays, g, start, &mut scratch, group::Out::Occluded(&mut *out), cost.as_mut(), &mut c), |i| lone.push(i));
-            for i in lone {
-                out[i - start] = random::any(&self.tree, soup, rays, i, i - start, cost.as_mut(), &mut c);
-            }
-            Tally { counts: c, peak_bytes: scratch.bytes() as u64 }
-        });
+        let tally: Tally<Counts> = par_occlusion_chunks(
+            rays,
+            occluded,
+            cost,
+            self.chunk(plan),
+            |range, out, mut cost| {
+                let mut c = Counts::default();
+                let mut scratch = group::Scratch::new();
+                let start = range.start;
+                let mut lone = Vec::new();
+                self.groups(
+                    plan,
+                    range,
+                    |g| {
+                        group::trace(
+                            &self.tree,
+                            &self.cfg,
+                            soup,
+                            rays,
+                            g,
+                            start,
+                            &mut scratch,
+                            group::Out::Occluded(&mut *out),
+                            cost.as_mut(),
+                            &mut c,
+                        )
+                    },
+                    |i| lone.push(i),
+                );
+                for i in lone {
+                    out[i - start] =
+                        random::any(&self.tree, soup, rays, i, i - start, cost.as_mut(), &mut c);
+                }
+                Tally {
+                    counts: c,
+                    peak_bytes: scratch.bytes() as u64,
+                }
+            },
+        );
         Ok(tally.into_stats(rays.len()))
     }
 

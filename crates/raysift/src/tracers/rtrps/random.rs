@@ -29,15 +29,34 @@ fn local(p: &Part, o: Vec3, d: Vec3) -> Option<Local> {
     let inv = p.inv?;
     let (ol, dl) = (inv.transform_point3(o), inv.transform_vector3(d));
     let dd = dl.length_squared();
-    let world = p.sigma * p.extent + Vec3::from(p.xf.translation).abs().max_element() + o.abs().max_element();
+    let world = p.sigma * p.extent
+        + Vec3::from(p.xf.translation).abs().max_element()
+        + o.abs().max_element();
     let e = 2.0 * SLACK * (p.sigma_inv * world + ol.abs().max_element() + p.extent);
-    (dd.is_finite() && dd > 0.0).then(|| Local { o: ol, d: dl, dd, dl: dd.sqrt(), k: p.sigma * p.sigma_inv, e })
+    (dd.is_finite() && dd > 0.0).then(|| Local {
+        o: ol,
+        d: dl,
+        dd,
+        dl: dd.sqrt(),
+        k: p.sigma * p.sigma_inv,
+        e,
+    })
 }
 
 /// Walks part `p` for the ray, calling `leaf(l, tmax)` on each leaf whose sphere passes; `leaf`
 /// returns the new `tmax`, or `None` to stop the whole walk.
 #[inline]
-fn walk(tree: &SphereTree, p: &Part, o: Vec3, d: Vec3, tmin: f32, mut tmax: f32, n: &mut Counts, cost: &mut u64, mut leaf: impl FnMut(usize, f32) -> Option<f32>) -> Option<f32> {
+fn walk(
+    tree: &SphereTree,
+    p: &Part,
+    o: Vec3,
+    d: Vec3,
+    tmin: f32,
+    mut tmax: f32,
+    n: &mut Counts,
+    cost: &mut u64,
+    mut leaf: impl FnMut(usize, f32) -> Option<f32>,
+) -> Option<f32> {
     let Some(lr) = local(p, o, d) else {
         for l in p.leaves.clone() {
             tmax = leaf(l as usize, tmax)?;
@@ -78,7 +97,16 @@ fn walk(tree: &SphereTree, p: &Part, o: Vec3, d: Vec3, tmin: f32, mut tmax: f32,
 
 /// Closest hit of ray `i` (window slot `k`) into `out`.
 #[allow(clippy::too_many_arguments)]
-pub fn closest(tree: &SphereTree, soup: &TriangleSoup, rays: &RayBatch, i: usize, k: usize, out: &mut HitsMut<'_>, cost: Option<&mut CostMut<'_>>, n: &mut Counts) {
+pub fn closest(
+    tree: &SphereTree,
+    soup: &TriangleSoup,
+    rays: &RayBatch,
+    i: usize,
+    k: usize,
+    out: &mut HitsMut<'_>,
+    cost: Option<&mut CostMut<'_>>,
+    n: &mut Counts,
+) {
     let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
     let (mut bt, mut bp, mut bu, mut bv) = (rays.tmax[i], MISS, 0.0, 0.0);
     n.random_rays += 1;
@@ -90,7 +118,9 @@ pub fn closest(tree: &SphereTree, soup: &TriangleSoup, rays: &RayBatch, i: usize
             for &q in &tree.tris[t0 as usize..t1 as usize] {
                 tris += 1;
                 let qu = q as usize;
-                if let Some(h) = intersect_triangle(o, d, soup.v0[qu], soup.v1[qu], soup.v2[qu], tmin, bt) {
+                if let Some(h) =
+                    intersect_triangle(o, d, soup.v0[qu], soup.v1[qu], soup.v2[qu], tmin, bt)
+                {
                     if closer(h.t, q, bt, bp) {
                         (bt, bp, bu, bv) = (h.t, q, h.u, h.v);
                     }
@@ -110,7 +140,15 @@ pub fn closest(tree: &SphereTree, soup: &TriangleSoup, rays: &RayBatch, i: usize
 
 /// Any hit of ray `i` (window slot `k`).
 #[allow(clippy::too_many_arguments)]
-pub fn any(tree: &SphereTree, soup: &TriangleSoup, rays: &RayBatch, i: usize, k: usize, cost: Option<&mut CostMut<'_>>, n: &mut Counts) -> bool {
+pub fn any(
+    tree: &SphereTree,
+    soup: &TriangleSoup,
+    rays: &RayBatch,
+    i: usize,
+    k: usize,
+    cost: Option<&mut CostMut<'_>>,
+    n: &mut Counts,
+) -> bool {
     let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
     n.random_rays += 1;
     let (mut tests, mut tris, mut leaves) = (0u64, 0u64, 0u64);
@@ -122,7 +160,9 @@ pub fn any(tree: &SphereTree, soup: &TriangleSoup, rays: &RayBatch, i: usize, k:
             for &q in &tree.tris[t0 as usize..t1 as usize] {
                 tris += 1;
                 let qu = q as usize;
-                if intersect_triangle(o, d, soup.v0[qu], soup.v1[qu], soup.v2[qu], tmin, tmax).is_some() {
+                if intersect_triangle(o, d, soup.v0[qu], soup.v1[qu], soup.v2[qu], tmin, tmax)
+                    .is_some()
+                {
                     return None;
                 }
             }
