@@ -32,8 +32,7 @@ type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
 fn run() -> Res<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (mut spec, mut specs) = (None, Vec::new());
-    let (mut width, mut random, mut bounces, mut repeat, mut threads) =
-        (512u32, 1usize << 18, 3usize, 3usize, 0usize);
+    let (mut width, mut random, mut bounces, mut repeat, mut threads) = (512u32, 1usize << 18, 3usize, 3usize, 0usize);
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = || it.next().ok_or(format!("{a} needs a value"));
@@ -50,20 +49,11 @@ fn run() -> Res<()> {
     }
     let spec = spec.ok_or("usage: dacrt5d_bench SCENE_SPEC [--width W] [--random N] [--bounces B] [--repeat R] [--threads N] [--tracer \"NAME k=v ...\"]...")?;
     if specs.is_empty() {
-        specs = [
-            "bvh",
-            "dacrt",
-            "dacrt5d cull=frustum",
-            "dacrt5d cull=cone",
-            "dacrt5d stop=fixed",
-            "dacrt5d spatial=false",
-        ]
-        .map(String::from)
-        .to_vec();
+        specs = ["bvh", "dacrt", "dacrt5d cull=frustum", "dacrt5d cull=cone", "dacrt5d stop=fixed", "dacrt5d spatial=false"]
+            .map(String::from)
+            .to_vec();
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
     pool.install(|| -> Res<()> {
         let scene = procedural::open(&spec)?;
         println!("scene {} ({} triangles), {} threads, best of {repeat}", scene.name, scene.len(), rayon::current_num_threads());

@@ -15,9 +15,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 fn opts(kv: &[(&str, &str)]) -> Vec<(String, String)> {
-    kv.iter()
-        .map(|(k, v)| (k.to_string(), v.to_string()))
-        .collect()
+    kv.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
 }
 
 /// Every test of this binary holds this lock: the memory test's counting allocator sees every
@@ -44,12 +42,7 @@ fn check(scene: &Scene, rays: &RayBatch) {
 }
 
 fn ray(o: Vec3, d: Vec3) -> Ray {
-    Ray {
-        origin: o,
-        dir: d,
-        tmin: 0.0,
-        tmax: f32::INFINITY,
-    }
+    Ray { origin: o, dir: d, tmin: 0.0, tmax: f32::INFINITY }
 }
 
 fn scene() -> Scene {
@@ -118,12 +111,7 @@ fn batches_of_one_ray_and_unbounded_rays() {
         ray(b.min - Vec3::ONE, (c - b.min + Vec3::ONE).normalize()),
         ray(c, Vec3::X),
         ray(b.max + Vec3::ONE, Vec3::ONE),
-        Ray {
-            origin: c,
-            dir: -Vec3::Y,
-            tmin: -3.0,
-            tmax: 0.5,
-        },
+        Ray { origin: c, dir: -Vec3::Y, tmin: -3.0, tmax: 0.5 },
     ] {
         check(&s, &RayBatch::from_rays([r]));
     }
@@ -143,11 +131,7 @@ fn stats(s: &Scene, rays: &RayBatch, kv: &[(&str, &str)]) -> Stats {
     t.prepare(s).unwrap();
     let want = Oracle::new(s, rays);
     let (got, st) = t.intersect_timed(s, rays).unwrap();
-    assert_eq!(
-        raysift::testkit::first_difference(&want.hits, &got),
-        None,
-        "{kv:?}"
-    );
+    assert_eq!(raysift::testkit::first_difference(&want.hits, &got), None, "{kv:?}");
     st
 }
 
@@ -167,16 +151,9 @@ fn options_show_in_the_counters() {
         assert!(st.work.get("ray_tri") * 20 < n * t, "{:?}", st.work);
         assert!(st.work.get("surv_d0") < 2 * t);
     }
-    assert!(
-        f.work.get("spatial_splits") > 0 && f.work.get("terminated") > 0,
-        "{:?}",
-        f.work
-    );
+    assert!(f.work.get("spatial_splits") > 0 && f.work.get("terminated") > 0, "{:?}", f.work);
     let off = stats(&s, &cam, &[("spatial", "false")]);
-    assert_eq!(
-        (off.work.get("spatial_splits"), off.work.get("terminated")),
-        (0, 0)
-    );
+    assert_eq!((off.work.get("spatial_splits"), off.work.get("terminated")), (0, 0));
     assert!(off.work.get("ray_splits") > 0);
     let fixed = stats(&s, &cam, &[("stop", "fixed")]);
     assert_ne!(fixed.work.get("leaves"), f.work.get("leaves"));

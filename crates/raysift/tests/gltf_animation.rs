@@ -54,11 +54,7 @@ fn rig_poses_equal_hand_computed_positions() {
     close(&world(&scene, 0), &quad0);
     close(
         &world(&scene, 1),
-        &[
-            Vec3::new(5.0, 0.0, 0.0),
-            Vec3::new(6.0, 0.0, 0.0),
-            Vec3::new(5.0, 1.0, 0.0),
-        ],
+        &[Vec3::new(5.0, 0.0, 0.0), Vec3::new(6.0, 0.0, 0.0), Vec3::new(5.0, 1.0, 0.0)],
     );
 
     // t = 1. root: CUBICSPLINE, td = 2, s = 0.5: 0.5·0 + 2·0.125·(1,0,0) + 0.5·(2,0,0) - 0 =
@@ -81,11 +77,7 @@ fn rig_poses_equal_hand_computed_positions() {
     // STEP: at t = 1 the second key (90° about z) holds: T(5,0,0)·Rz90.
     close(
         &world(&scene, 1),
-        &[
-            Vec3::new(5.0, 0.0, 0.0),
-            Vec3::new(5.0, 1.0, 0.0),
-            Vec3::new(4.0, 0.0, 0.0),
-        ],
+        &[Vec3::new(5.0, 0.0, 0.0), Vec3::new(5.0, 1.0, 0.0), Vec3::new(4.0, 0.0, 0.0)],
     );
     assert_eq!(
         scene.changes_since(before),
@@ -116,14 +108,9 @@ fn rig_poses_equal_hand_computed_positions() {
     let s2 = scene.stamp();
     p.apply(&mut scene, 5.0).unwrap();
     assert_eq!(world(&scene, 0), at2);
-    assert_eq!(
-        scene.changes_since(s2),
-        Change::None,
-        "nothing changed: nothing reported"
-    );
+    assert_eq!(scene.changes_since(s2), Change::None, "nothing changed: nothing reported");
     // t = 2: root at (2,0,0), tip rotated 90°: top vertex (0.5,2,0) -> J1 = T(2,1,0)·R90·T(0,-1,0).
-    let top2 =
-        0.25 * (quad0[2] + Vec3::new(2.0, 0.0, 0.0)) + 0.75 * Vec3::new(2.0 - 1.0, 1.0 + 0.5, 0.0);
+    let top2 = 0.25 * (quad0[2] + Vec3::new(2.0, 0.0, 0.0)) + 0.75 * Vec3::new(2.0 - 1.0, 1.0 + 0.5, 0.0);
     assert!((at2[2] - top2).length() < 1e-5, "{} != {top2}", at2[2]);
 }
 
@@ -140,10 +127,7 @@ fn linear_translation_and_step_rotation_channels() {
     let mut p = p.unwrap();
     p.apply(&mut scene, 0.5).unwrap();
     // Root at (0.5, 0, 0): the bottom vertices follow it alone.
-    close(
-        &world(&scene, 0)[..2],
-        &[Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0)],
-    );
+    close(&world(&scene, 0)[..2], &[Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0)]);
     // STEP rotation of the triangle switches exactly at its second key.
     p.apply(&mut scene, 1.0).unwrap();
     close(&world(&scene, 1)[1..2], &[Vec3::new(5.0, 1.0, 0.0)]);
@@ -169,70 +153,38 @@ fn bad_animations_are_clear_errors() {
 
     let mut r = Rig::new();
     r.json["animations"][0]["channels"][1]["target"]["node"] = 9.into();
-    fails(
-        &r,
-        "animations[0].channels[1].target.node",
-        "refers to node 9 but there are 4 nodes",
-    );
+    fails(&r, "animations[0].channels[1].target.node", "refers to node 9 but there are 4 nodes");
 
     let mut r = Rig::new();
     r.json["accessors"][8]["count"] = 1.into();
-    fails(
-        &r,
-        "animations[0].samplers[1].output",
-        "1 values, 2 expected",
-    );
+    fails(&r, "animations[0].samplers[1].output", "1 values, 2 expected");
 
     let mut r = Rig::new();
     r.json["accessors"][10]["count"] = 5.into();
-    fails(
-        &r,
-        "animations[0].samplers[0].output",
-        "5 values, 6 expected",
-    );
+    fails(&r, "animations[0].samplers[0].output", "5 values, 6 expected");
 
     let mut r = Rig::new();
     r.set_f32(at::CUBIC + 12 + 4, f32::NAN);
-    fails(
-        &r,
-        "animations[0].samplers[0].output (accessors[10], element 1)",
-        "non-finite",
-    );
+    fails(&r, "animations[0].samplers[0].output (accessors[10], element 1)", "non-finite");
 
     let mut r = Rig::new();
     r.set_f32(at::TIMES + 4, f32::NAN);
-    fails(
-        &r,
-        "animations[0].samplers[0].input (accessors[6], element 1)",
-        "not finite",
-    );
+    fails(&r, "animations[0].samplers[0].input (accessors[6], element 1)", "not finite");
 
     let mut r = Rig::new();
     r.set_f32(at::TIMES_STEP, 3.0);
-    fails(
-        &r,
-        "samplers[2].input (accessors[7], element 1)",
-        "before the previous",
-    );
+    fails(&r, "samplers[2].input (accessors[7], element 1)", "before the previous");
 
     let mut r = Rig::new();
     r.set_f32(at::ROT_LINEAR + 12, 0.0);
-    fails(
-        &r,
-        "samplers[1].output (accessors[8], element 0)",
-        "zero length",
-    );
+    fails(&r, "samplers[1].output (accessors[8], element 0)", "zero length");
 }
 
 #[test]
 fn bad_skins_are_clear_errors() {
     let mut r = Rig::new();
     r.json["accessors"][4]["count"] = 3.into();
-    fails(
-        &r,
-        "meshes[0].primitives[0].attributes.WEIGHTS_0",
-        "3 elements but POSITION has 4",
-    );
+    fails(&r, "meshes[0].primitives[0].attributes.WEIGHTS_0", "3 elements but POSITION has 4");
 
     let mut r = Rig::new();
     r.json["accessors"][3]["count"] = 5.into();
@@ -248,19 +200,11 @@ fn bad_skins_are_clear_errors() {
 
     let mut r = Rig::new();
     r.bin[at::JOINTS + 8 * 2 + 2] = 7; // vertex 2, joint slot 1 (weight 3): joint 7 of 2
-    fails(
-        &r,
-        "attributes.JOINTS_0 (accessors[3], element 2)",
-        "joint 7 out of range",
-    );
+    fails(&r, "attributes.JOINTS_0 (accessors[3], element 2)", "joint 7 out of range");
 
     let mut r = Rig::new();
     r.set_f32(at::WEIGHTS + 16, -1.0);
-    fails(
-        &r,
-        "attributes.WEIGHTS_0 (accessors[4], element 1)",
-        "weight -1",
-    );
+    fails(&r, "attributes.WEIGHTS_0 (accessors[4], element 1)", "weight -1");
 
     let mut r = Rig::new();
     r.set_f32(at::WEIGHTS, 0.0);
@@ -268,19 +212,11 @@ fn bad_skins_are_clear_errors() {
 
     let mut r = Rig::new();
     r.json["accessors"][5]["count"] = 1.into();
-    fails(
-        &r,
-        "skins[0].inverseBindMatrices",
-        "1 matrices for 2 joints",
-    );
+    fails(&r, "skins[0].inverseBindMatrices", "1 matrices for 2 joints");
 
     let mut r = Rig::new();
     r.set_f32(at::IBM + 64 + 52, f32::INFINITY);
-    fails(
-        &r,
-        "skins[0].inverseBindMatrices (accessors[5], element 1)",
-        "non-finite",
-    );
+    fails(&r, "skins[0].inverseBindMatrices (accessors[5], element 1)", "non-finite");
 }
 
 #[test]
@@ -310,11 +246,7 @@ fn brainstem_rest_pose_matches_the_loader_and_frames_deform_every_mesh() {
     assert_eq!(loaded.len(), 61_666);
     assert_eq!(p.skinned().len(), 59);
     assert!(p.rigid().is_empty());
-    assert!(
-        (p.clip().duration - 34.88).abs() < 1e-3,
-        "{}",
-        p.clip().duration
-    );
+    assert!((p.clip().duration - 34.88).abs() < 1e-3, "{}", p.clip().duration);
     // The rest pose skinned (joints at their file TRS, global · inverseBind) is NOT the
     // loader's bind pose in this file (re-exported by three.js): its joint nodes' TRS are not
     // the inverses of the inverse bind matrices, so vertices move by up to ~1.2 (size 3.1;
@@ -331,14 +263,9 @@ fn brainstem_rest_pose_matches_the_loader_and_frames_deform_every_mesh() {
             .map(|(a, b)| (a - b).length())
             .fold(0f32, f32::max);
         let (b, r) = (s.bounds(), s.bounds().extent().length() / size);
-        eprintln!(
-            "BrainStem {what} vs loader: worst vertex distance {worst:.3}, size ratio {r:.3}"
-        );
+        eprintln!("BrainStem {what} vs loader: worst vertex distance {worst:.3}, size ratio {r:.3}");
         assert!((0.6..1.5).contains(&r), "{what}: size ratio {r}");
-        assert!(
-            (b.center() - lb.center()).length() < 0.2 * size,
-            "{what}: {b:?} vs {lb:?}"
-        );
+        assert!((b.center() - lb.center()).length() < 0.2 * size, "{what}: {b:?} vs {lb:?}");
     }
 
     // Frame 0 is the clip's first keys, not the rest pose: it differs, and every skinned mesh
@@ -380,11 +307,6 @@ fn brainstem_every_tracer_equals_naive_over_frames() {
         });
     }
     let d = p.clip().duration;
-    raysift::testkit::check_animation(
-        &scene,
-        3,
-        |s, f| p.apply(s, f as f32 * d / 3.0).unwrap(),
-        &rays,
-    )
-    .unwrap();
+    raysift::testkit::check_animation(&scene, 3, |s, f| p.apply(s, f as f32 * d / 3.0).unwrap(), &rays)
+        .unwrap();
 }

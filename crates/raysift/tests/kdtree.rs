@@ -13,9 +13,7 @@ use raysift::tracers::{self, kdtree::KdTracer};
 
 fn scene_of(name: &str, tris: &[[Vec3; 3]]) -> Scene {
     let positions = tris.iter().flatten().copied().collect();
-    let indices = (0..tris.len() as u32)
-        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-        .collect();
+    let indices = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
     Scene::from_meshes(name, vec![Mesh::new("m", positions, indices)]).unwrap()
 }
 
@@ -72,23 +70,10 @@ fn triangles_in_split_planes() {
                 d
             }
             1 => Vec3::new(grid(&mut rng), grid(&mut rng), grid(&mut rng)) - o,
-            _ => Vec3::new(
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-            ),
+            _ => Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)),
         };
-        let tmax = if rng.gen_range(0..4) == 0 {
-            rng.gen_range(0..8) as f32 * 0.5
-        } else {
-            f32::INFINITY
-        };
-        rays.push(Ray {
-            origin: o,
-            dir,
-            tmin: 0.0,
-            tmax,
-        });
+        let tmax = if rng.gen_range(0..4) == 0 { rng.gen_range(0..8) as f32 * 0.5 } else { f32::INFINITY };
+        rays.push(Ray { origin: o, dir, tmin: 0.0, tmax });
     }
     check(&scene, &rays);
     // The case exercises what it is about: splits in the squares' planes, and rays in them.
@@ -122,22 +107,9 @@ fn deep_and_degenerate_trees() {
     let scene = scene_of("deep", &tris);
     let mut rays = RayBatch::default();
     for _ in 0..2000 {
-        let o = Vec3::new(
-            rng.gen_range(-3.0..3.0),
-            rng.gen_range(-3.0..3.0),
-            rng.gen_range(-3.0..3.0),
-        );
-        let target = if rng.gen() {
-            Vec3::splat(0.5)
-        } else {
-            Vec3::splat(0.25)
-        } + Vec3::new(rng.gen(), rng.gen(), rng.gen()) * 1e-3;
-        rays.push(Ray {
-            origin: o,
-            dir: target - o,
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-        });
+        let o = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
+        let target = if rng.gen() { Vec3::splat(0.5) } else { Vec3::splat(0.25) } + Vec3::new(rng.gen(), rng.gen(), rng.gen()) * 1e-3;
+        rays.push(Ray { origin: o, dir: target - o, tmin: 0.0, tmax: f32::INFINITY });
     }
     check(&scene, &rays);
     let mut t = KdTracer::new(Default::default()).unwrap();
@@ -172,14 +144,9 @@ fn counters_and_cost() {
     t.prepare(&scene).unwrap();
     let mut hits = raysift::HitBatch::new(0);
     let mut cost = raysift::tracer::RayCost::default();
-    let s = t
-        .intersect(&scene, &rays, &mut hits, Some(&mut cost))
-        .unwrap();
+    let s = t.intersect(&scene, &rays, &mut hits, Some(&mut cost)).unwrap();
     let tri = s.work.get("ray_tri");
-    assert!(
-        tri > 0 && tri < rays.len() as u64 * 200,
-        "{tri} triangle tests"
-    );
+    assert!(tri > 0 && tri < rays.len() as u64 * 200, "{tri} triangle tests");
     assert!(s.work.get("culled") > 0);
     assert_eq!(cost.triangles.iter().map(|&x| x as u64).sum::<u64>(), tri);
     let nodes = s.work.get("nodes") + s.work.get("leaves");
@@ -204,21 +171,10 @@ fn bytes_per_triangle() {
 /// Bad options name the tracer and the option.
 #[test]
 fn bad_options_are_clear_errors() {
-    for (k, v) in [
-        ("max_depth", "65"),
-        ("empty_bonus", "1"),
-        ("max_leaf", "0"),
-        ("intersection_cost", "-1"),
-    ] {
-        let e = tracers::create("kdtree", &[(k.into(), v.into())])
-            .err()
-            .unwrap()
-            .to_string();
+    for (k, v) in [("max_depth", "65"), ("empty_bonus", "1"), ("max_leaf", "0"), ("intersection_cost", "-1")] {
+        let e = tracers::create("kdtree", &[(k.into(), v.into())]).err().unwrap().to_string();
         assert!(e.contains("kdtree") && e.contains(k), "{e}");
     }
-    let e = tracers::create("kdtree", &[("leaf".into(), "1".into())])
-        .err()
-        .unwrap()
-        .to_string();
+    let e = tracers::create("kdtree", &[("leaf".into(), "1".into())]).err().unwrap().to_string();
     assert!(e.contains("max_leaf"), "{e}");
 }

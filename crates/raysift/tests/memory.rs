@@ -96,11 +96,6 @@ fn rtrps_is_about_17_bytes_per_triangle() {
         let mut t = tracers::create("rtrps", &[]).unwrap();
         t.prepare(&s).unwrap();
         let per = t.bytes() as f64 / s.len() as f64;
-        assert!(
-            (16.5..17.5).contains(&per),
-            "{} B per triangle on {}",
-            per,
-            s.name
-        );
+        assert!((16.5..17.5).contains(&per), "{} B per triangle on {}", per, s.name);
     }
 }

@@ -265,8 +265,10 @@ impl TriFromOrigin {
         let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
         let near_enough = ((t - moved).abs() * dmax).cmple(Vec4::splat(self.reach));
         let gated = Vec4::select(inside, t, moved);
-        let ok =
-            nonempty & (inside | near_enough) & gated.cmpge(Vec4::splat(tmin)) & gated.cmple(tmax);
+        let ok = nonempty
+            & (inside | near_enough)
+            & gated.cmpge(Vec4::splat(tmin))
+            & gated.cmple(tmax);
         (gated, ok.bitmask())
     }
 }

@@ -73,12 +73,8 @@ impl Rig {
         g.extend([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
         g.extend([1.0, 3.0, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0]);
         // Inverse binds, column-major: identity, translate(0, -1, 0).
-        g.extend([
-            1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.,
-        ]);
-        g.extend([
-            1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., -1., 0., 1.,
-        ]);
+        g.extend([1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.]);
+        g.extend([1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., -1., 0., 1.]);
         g.extend([0.0, 2.0, 0.0, 1.0]);
         g.extend([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, h, h]);
         g.extend([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, h, h]);
@@ -103,7 +99,9 @@ impl Rig {
             .iter()
             .map(|&(o, l)| json!({"buffer": 0, "byteOffset": o, "byteLength": l}))
             .collect();
-        let acc = |view: usize, ty: &str, ct: u32, count: usize| json!({"bufferView": view, "type": ty, "componentType": ct, "count": count});
+        let acc = |view: usize, ty: &str, ct: u32, count: usize| {
+            json!({"bufferView": view, "type": ty, "componentType": ct, "count": count})
+        };
         let mut accessors = vec![
             acc(0, "VEC3", 5126, 4),
             acc(1, "VEC3", 5126, 3),

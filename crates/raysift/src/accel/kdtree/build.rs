@@ -80,8 +80,7 @@ impl Subtree {
     /// Appends `s` (built on its own), shifting its indices.
     fn append(&mut self, s: Subtree) {
         let (dn, di) = (self.nodes.len() as u32, self.ids.len() as u32);
-        self.nodes
-            .extend(s.nodes.into_iter().map(|n| n.shifted(dn, di)));
+        self.nodes.extend(s.nodes.into_iter().map(|n| n.shifted(dn, di)));
         self.ids.extend(s.ids);
         self.depth = self.depth.max(s.depth);
     }
@@ -175,8 +174,7 @@ impl Ctx<'_> {
                 .map(|e| e.tri)
                 .collect();
             ids.sort_unstable();
-            out.nodes
-                .push(Node::leaf(out.ids.len() as u32, ids.len() as u32));
+            out.nodes.push(Node::leaf(out.ids.len() as u32, ids.len() as u32));
             out.ids.extend(ids);
             return;
         };
@@ -210,11 +208,7 @@ impl Ctx<'_> {
         }
         let c = self.cfg;
         let sah = |pb: f32, pa: f32, nb: usize, na: usize| {
-            let bonus = if nb == 0 || na == 0 {
-                1.0 - c.empty_bonus
-            } else {
-                1.0
-            };
+            let bonus = if nb == 0 || na == 0 { 1.0 - c.empty_bonus } else { 1.0 };
             c.traversal_cost + c.intersection_cost * bonus * (pb * nb as f32 + pa * na as f32)
         };
         let (mut nb, mut na) = (0usize, n);

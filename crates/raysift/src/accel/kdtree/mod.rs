@@ -117,16 +117,10 @@ impl BuildConfig {
             ));
         }
         if !(self.empty_bonus >= 0.0 && self.empty_bonus < 1.0) {
-            return bad(format!(
-                "empty_bonus must be in [0, 1), got {}",
-                self.empty_bonus
-            ));
+            return bad(format!("empty_bonus must be in [0, 1), got {}", self.empty_bonus));
         }
         if !(1..=255).contains(&self.max_leaf) {
-            return bad(format!(
-                "max_leaf must be in 1..=255, got {}",
-                self.max_leaf
-            ));
+            return bad(format!("max_leaf must be in 1..=255, got {}", self.max_leaf));
         }
         if self.max_depth > MAX_DEPTH {
             return bad(format!(
@@ -334,10 +328,7 @@ impl KdTree {
         };
         let all = walk.node(0, self.bounds, 0)?;
         if walk.depth != self.depth {
-            return bad(format!(
-                "depth {} recorded, {} found",
-                self.depth, walk.depth
-            ));
+            return bad(format!("depth {} recorded, {} found", self.depth, walk.depth));
         }
         let expected: Vec<u32> = (0..soup.len() as u32)
             .filter(|&i| build::in_tree(&soup.bounds(i as usize)))

@@ -7,46 +7,20 @@ use glam::Vec3;
 
 fn scene_of(tris: &[[Vec3; 3]]) -> Scene {
     let positions = tris.iter().flatten().copied().collect();
-    let indices = (0..tris.len() as u32)
-        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-        .collect();
+    let indices = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
     Scene::from_meshes("t", vec![Mesh::new("m", positions, indices)]).unwrap()
 }
 
 #[test]
 fn builds_valid_trees_and_threads_change_nothing() {
-    for s in [
-        procedural::soup(3000, 4),
-        procedural::icosphere(5000),
-        procedural::cornell(),
-    ] {
+    for s in [procedural::soup(3000, 4), procedural::icosphere(5000), procedural::cornell()] {
         let soup = s.triangles();
-        let seq = KdTree::build(
-            soup,
-            &BuildConfig {
-                parallel_threshold: usize::MAX,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let par = KdTree::build(
-            soup,
-            &BuildConfig {
-                parallel_threshold: 16,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let seq = KdTree::build(soup, &BuildConfig { parallel_threshold: usize::MAX, ..Default::default() }).unwrap();
+        let par = KdTree::build(soup, &BuildConfig { parallel_threshold: 16, ..Default::default() }).unwrap();
         seq.validate(soup).unwrap();
-        assert_eq!(
-            (&seq.nodes, &seq.ids, seq.depth),
-            (&par.nodes, &par.ids, par.depth)
-        );
+        assert_eq!((&seq.nodes, &seq.ids, seq.depth), (&par.nodes, &par.ids, par.depth));
         let shape = seq.shape();
-        assert!(
-            shape.interior > 0 && shape.leaves == shape.interior + 1,
-            "{shape:?}"
-        );
+        assert!(shape.interior > 0 && shape.leaves == shape.interior + 1, "{shape:?}");
         assert!(seq.depth <= BuildConfig::default().depth_limit(soup.len()));
     }
 }
@@ -82,19 +56,11 @@ fn triangles_in_split_planes_and_the_reference_rule() {
         .iter()
         .filter(|n| !n.is_leaf() && n.split().fract() == 0.0)
         .count();
-    assert!(
-        planar_splits > 0,
-        "the case must split in the triangles' planes: {:?}",
-        t.nodes
-    );
+    assert!(planar_splits > 0, "the case must split in the triangles' planes: {:?}", t.nodes);
     // Corrupt: find an interior node splitting at s and make it split a little below, so a
     // planar triangle at s sent below now reaches above... the rule must reject it.
     let mut bad = t.clone();
-    let i = bad
-        .nodes
-        .iter()
-        .position(|n| !n.is_leaf() && n.split().fract() == 0.0)
-        .unwrap();
+    let i = bad.nodes.iter().position(|n| !n.is_leaf() && n.split().fract() == 0.0).unwrap();
     let n = bad.nodes[i];
     bad.nodes[i] = Node::interior(n.axis(), n.split() - 0.25, n.above());
     assert!(bad.validate(s.triangles()).is_err());
@@ -116,11 +82,7 @@ fn degenerate_triangles_are_left_out_and_empty_scenes_build() {
     held.sort_unstable();
     held.dedup();
     assert_eq!(held, vec![0, 3]);
-    let e = KdTree::build(
-        &crate::scene::TriangleSoup::default(),
-        &BuildConfig::default(),
-    )
-    .unwrap();
+    let e = KdTree::build(&crate::scene::TriangleSoup::default(), &BuildConfig::default()).unwrap();
     assert_eq!((e.nodes.len(), e.ids.len()), (1, 0));
     e.validate(&crate::scene::TriangleSoup::default()).unwrap();
 }
@@ -131,57 +93,21 @@ fn degenerate_triangles_are_left_out_and_empty_scenes_build() {
 fn limits_bound_the_tree() {
     let tris = vec![[Vec3::ZERO, Vec3::X, Vec3::Y]; 500];
     let s = scene_of(&tris);
-    let t = KdTree::build(
-        s.triangles(),
-        &BuildConfig {
-            traversal_cost: 0.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let t = KdTree::build(s.triangles(), &BuildConfig { traversal_cost: 0.0, ..Default::default() }).unwrap();
     t.validate(s.triangles()).unwrap();
     assert!(t.depth <= BuildConfig::default().depth_limit(500));
     let s = procedural::soup(2000, 1);
-    let t = KdTree::build(
-        s.triangles(),
-        &BuildConfig {
-            max_depth: 2,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let t = KdTree::build(s.triangles(), &BuildConfig { max_depth: 2, ..Default::default() }).unwrap();
     t.validate(s.triangles()).unwrap();
     assert!(t.depth <= 2 && t.shape().leaves <= 4);
-    let t = KdTree::build(
-        s.triangles(),
-        &BuildConfig {
-            max_leaf: 255,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let t = KdTree::build(s.triangles(), &BuildConfig { max_leaf: 255, ..Default::default() }).unwrap();
     assert!(t.nodes[0].is_leaf() || t.shape().leaves < 2000 / 8);
     for bad in [
-        BuildConfig {
-            max_leaf: 0,
-            ..Default::default()
-        },
-        BuildConfig {
-            max_depth: MAX_DEPTH + 1,
-            ..Default::default()
-        },
-        BuildConfig {
-            empty_bonus: 1.0,
-            ..Default::default()
-        },
-        BuildConfig {
-            intersection_cost: 0.0,
-            ..Default::default()
-        },
-        BuildConfig {
-            traversal_cost: f32::NAN,
-            ..Default::default()
-        },
+        BuildConfig { max_leaf: 0, ..Default::default() },
+        BuildConfig { max_depth: MAX_DEPTH + 1, ..Default::default() },
+        BuildConfig { empty_bonus: 1.0, ..Default::default() },
+        BuildConfig { intersection_cost: 0.0, ..Default::default() },
+        BuildConfig { traversal_cost: f32::NAN, ..Default::default() },
     ] {
         let e = KdTree::build(s.triangles(), &bad).unwrap_err().to_string();
         assert!(e.contains("kd-tree build"), "{e}");
@@ -203,22 +129,11 @@ fn bytes_per_triangle() {
 
 #[test]
 fn the_split_window_brackets_the_distance() {
-    for ts in [
-        0.0f32,
-        1.0,
-        -1.0,
-        1e30,
-        -1e-30,
-        f32::INFINITY,
-        f32::NEG_INFINITY,
-    ] {
+    for ts in [0.0f32, 1.0, -1.0, 1e30, -1e-30, f32::INFINITY, f32::NEG_INFINITY] {
         let (lo, hi) = KdTree::split_window(ts);
         assert!(lo <= ts && ts <= hi, "{ts}: {lo} {hi}");
     }
-    assert_eq!(
-        KdTree::split_window(f32::NAN),
-        (f32::NEG_INFINITY, f32::INFINITY)
-    );
+    assert_eq!(KdTree::split_window(f32::NAN), (f32::NEG_INFINITY, f32::INFINITY));
     let (lo, hi) = KdTree::split_window(100.0);
     assert!(lo < 100.0 && hi > 100.0);
 }

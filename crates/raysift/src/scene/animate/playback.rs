@@ -200,9 +200,7 @@ impl Playback {
         rigid: Vec<(usize, usize)>,
     ) -> Result<Self> {
         if clips.is_empty() {
-            return Err(Error::Invalid(
-                "a playback needs at least one animation".into(),
-            ));
+            return Err(Error::Invalid("a playback needs at least one animation".into()));
         }
         let n = nodes.matrix.len();
         let mut p = Self {
@@ -217,10 +215,7 @@ impl Playback {
                 .map(|s| vec![Affine3A::IDENTITY; s.joints.len()])
                 .collect(),
             skin_changed: vec![true; skins.len()],
-            spare: skinned
-                .iter()
-                .map(|s| Vec::with_capacity(s.bind.len()))
-                .collect(),
+            spare: skinned.iter().map(|s| Vec::with_capacity(s.bind.len())).collect(),
             animated: vec![false; n],
             nodes,
             clips,
@@ -250,12 +245,7 @@ impl Playback {
             .clips
             .iter()
             .position(|c| c.name == which)
-            .or_else(|| {
-                which
-                    .parse::<usize>()
-                    .ok()
-                    .filter(|&k| k < self.clips.len())
-            })
+            .or_else(|| which.parse::<usize>().ok().filter(|&k| k < self.clips.len()))
             .ok_or_else(|| {
                 let names: Vec<String> = self
                     .clips
@@ -439,10 +429,7 @@ mod tests {
 
     #[test]
     fn step_linear_and_clamping() {
-        let v = vec![
-            Vec4::new(0.0, 2.0, 0.0, 0.0),
-            Vec4::new(4.0, 2.0, -2.0, 0.0),
-        ];
+        let v = vec![Vec4::new(0.0, 2.0, 0.0, 0.0), Vec4::new(4.0, 2.0, -2.0, 0.0)];
         let lin = channel(Interpolation::Linear, Property::Translation, v.clone());
         assert_eq!(lin.sample(2.0), Vec4::new(2.0, 2.0, -1.0, 0.0));
         assert_eq!(lin.sample(0.0), v[0]);
@@ -472,11 +459,7 @@ mod tests {
         let a = Quat::IDENTITY;
         // 90 degrees about z, given with a negative w: the short way is still 45 degrees at s=0.5.
         let b = -Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
-        let c = channel(
-            Interpolation::Linear,
-            Property::Rotation,
-            vec![a.into(), b.into()],
-        );
+        let c = channel(Interpolation::Linear, Property::Rotation, vec![a.into(), b.into()]);
         let q = Quat::from_vec4(c.sample(2.0));
         let want = Quat::from_rotation_z(std::f32::consts::FRAC_PI_4);
         assert!(q.angle_between(want) < 1e-4, "{q:?}");

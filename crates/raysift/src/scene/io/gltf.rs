@@ -255,12 +255,8 @@ impl<'a> Builder<'a> {
                 .name()
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("mesh {}", mesh.index()));
-            self.pending.push((
-                format!("{node_name}/{mesh_name}"),
-                mesh.index(),
-                world,
-                node.index(),
-            ));
+            self.pending
+                .push((format!("{node_name}/{mesh_name}"), mesh.index(), world, node.index()));
         }
         Ok(())
     }

@@ -55,10 +55,7 @@ pub fn parse_animated(
     };
     r.check_node_refs(doc)?;
     let nodes = r.nodes(doc)?;
-    let skins = doc
-        .skins()
-        .map(|s| r.skin(&s))
-        .collect::<Result<Vec<_>>>()?;
+    let skins = doc.skins().map(|s| r.skin(&s)).collect::<Result<Vec<_>>>()?;
     let clips = doc
         .animations()
         .map(|a| r.clip(&a))
@@ -69,13 +66,7 @@ pub fn parse_animated(
         match (node.skin(), node.mesh()) {
             (Some(skin), Some(mesh)) => {
                 let bind = scene.meshes()[m].positions.clone();
-                skinned.push(r.influences(
-                    &mesh,
-                    m,
-                    skin.index(),
-                    skins[skin.index()].joints.len(),
-                    bind,
-                )?);
+                skinned.push(r.influences(&mesh, m, skin.index(), skins[skin.index()].joints.len(), bind)?);
             }
             _ => rigid.push((m, n)),
         }
@@ -131,10 +122,7 @@ impl<'a> Reader<'a> {
                 if let Some(p) = parent[c.index()].replace(node.index()) {
                     return Err(self.err(
                         format!("nodes[{}].children", node.index()),
-                        format!(
-                            "node {} already has parent {p} (glTF nodes form trees)",
-                            c.index()
-                        ),
+                        format!("node {} already has parent {p} (glTF nodes form trees)", c.index()),
                     ));
                 }
             }
@@ -190,12 +178,7 @@ impl<'a> Reader<'a> {
                     ));
                 }
                 let mut out = Vec::with_capacity(joints.len());
-                for (i, e) in self
-                    .elements(&acc, 64)?
-                    .iter()
-                    .take(joints.len())
-                    .enumerate()
-                {
+                for (i, e) in self.elements(&acc, 64)?.iter().take(joints.len()).enumerate() {
                     let m = Mat4::from_cols_array(&std::array::from_fn(|k| f32_at(e, k)));
                     if !m.is_finite() {
                         return Err(self.err(
@@ -284,18 +267,12 @@ impl<'a> Reader<'a> {
             } else if t < 0.0 {
                 Some(format!("keyframe time {t} is negative"))
             } else if out.last().is_some_and(|&p| t < p) {
-                Some(format!(
-                    "keyframe time {t} is before the previous one ({})",
-                    out[i - 1]
-                ))
+                Some(format!("keyframe time {t} is before the previous one ({})", out[i - 1]))
             } else {
                 None
             };
             if let Some(msg) = bad {
-                return Err(self.err(
-                    format!("{place} (accessors[{}], element {i})", acc.index()),
-                    msg,
-                ));
+                return Err(self.err(format!("{place} (accessors[{}], element {i})", acc.index()), msg));
             }
             out.push(t);
         }
@@ -316,13 +293,7 @@ impl<'a> Reader<'a> {
             _ => (Dimensions::Vec3, 3),
         };
         let types: &[DataType] = match property {
-            Property::Rotation => &[
-                DataType::F32,
-                DataType::I8,
-                DataType::U8,
-                DataType::I16,
-                DataType::U16,
-            ],
+            Property::Rotation => &[DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16],
             _ => &[DataType::F32],
         };
         self.expect(acc, place, dims, types)?;
@@ -370,21 +341,12 @@ impl<'a> Reader<'a> {
         njoints: usize,
         bind: Vec<Vec3>,
     ) -> Result<Skinned> {
-        let prims: Vec<gltf::Primitive> = mesh
-            .primitives()
-            .filter(|p| is_triangles(p.mode()))
-            .collect();
-        let sets = prims.first().map_or(0, |p| {
-            (0..)
-                .take_while(|&k| p.get(&gltf::Semantic::Joints(k)).is_some())
-                .count()
-        });
+        let prims: Vec<gltf::Primitive> = mesh.primitives().filter(|p| is_triangles(p.mode())).collect();
+        let sets = prims
+            .first()
+            .map_or(0, |p| (0..).take_while(|&k| p.get(&gltf::Semantic::Joints(k)).is_some()).count());
         let mplace = |p: &gltf::Primitive, what: &str| {
-            format!(
-                "meshes[{}].primitives[{}].attributes.{what}",
-                mesh.index(),
-                p.index()
-            )
+            format!("meshes[{}].primitives[{}].attributes.{what}", mesh.index(), p.index())
         };
         if sets == 0 {
             let p = prims.first().map_or(0, |p| p.index());
@@ -394,43 +356,25 @@ impl<'a> Reader<'a> {
             ));
         }
         let per = 4 * sets;
-        let (mut joints, mut weights) =
-            (vec![0u16; per * bind.len()], vec![0f32; per * bind.len()]);
+        let (mut joints, mut weights) = (vec![0u16; per * bind.len()], vec![0f32; per * bind.len()]);
         let mut first = 0usize;
         for p in &prims {
             let nv = p.get(&gltf::Semantic::Positions).map_or(0, |a| a.count());
             for k in 0..sets as u32 {
                 let (jn, wn) = (format!("JOINTS_{k}"), format!("WEIGHTS_{k}"));
-                let ja = p.get(&gltf::Semantic::Joints(k)).ok_or_else(|| {
-                    self.err(
-                        mplace(p, &jn),
-                        format!("missing ({} sets in the first primitive)", sets),
-                    )
-                })?;
+                let ja = p
+                    .get(&gltf::Semantic::Joints(k))
+                    .ok_or_else(|| self.err(mplace(p, &jn), format!("missing ({} sets in the first primitive)", sets)))?;
                 let wa = p
                     .get(&gltf::Semantic::Weights(k))
                     .ok_or_else(|| self.err(mplace(p, &wn), format!("missing ({jn} is given)")))?;
-                self.expect(
-                    &ja,
-                    &mplace(p, &jn),
-                    Dimensions::Vec4,
-                    &[DataType::U8, DataType::U16],
-                )?;
-                self.expect(
-                    &wa,
-                    &mplace(p, &wn),
-                    Dimensions::Vec4,
-                    &[DataType::F32, DataType::U8, DataType::U16],
-                )?;
+                self.expect(&ja, &mplace(p, &jn), Dimensions::Vec4, &[DataType::U8, DataType::U16])?;
+                self.expect(&wa, &mplace(p, &wn), Dimensions::Vec4, &[DataType::F32, DataType::U8, DataType::U16])?;
                 for (a, name) in [(&ja, &jn), (&wa, &wn)] {
                     if a.count() != nv {
                         return Err(self.err(
                             mplace(p, name),
-                            format!(
-                                "accessor {} has {} elements but POSITION has {nv}",
-                                a.index(),
-                                a.count()
-                            ),
+                            format!("accessor {} has {} elements but POSITION has {nv}", a.index(), a.count()),
                         ));
                     }
                 }
@@ -442,25 +386,13 @@ impl<'a> Reader<'a> {
                         let j = read_uint(&jb[c * js..(c + 1) * js]);
                         let w = normalized(wa.data_type(), &wb[c * ws..(c + 1) * ws]);
                         let at = |name: &str, a: &gltf::Accessor| {
-                            format!(
-                                "{} (accessors[{}], element {i})",
-                                mplace(p, name),
-                                a.index()
-                            )
+                            format!("{} (accessors[{}], element {i})", mplace(p, name), a.index())
                         };
                         if !w.is_finite() || w < 0.0 {
-                            return Err(self.err(
-                                at(&wn, &wa),
-                                format!("weight {w} (must be finite and >= 0)"),
-                            ));
+                            return Err(self.err(at(&wn, &wa), format!("weight {w} (must be finite and >= 0)")));
                         }
                         if w != 0.0 && j as usize >= njoints {
-                            return Err(self.err(
-                                at(&jn, &ja),
-                                format!(
-                                    "joint {j} out of range (skins[{skin}] has {njoints} joints)"
-                                ),
-                            ));
+                            return Err(self.err(at(&jn, &ja), format!("joint {j} out of range (skins[{skin}] has {njoints} joints)")));
                         }
                         let slot = (first + i) * per + 4 * k as usize + c;
                         joints[slot] = if w != 0.0 { j as u16 } else { 0 };
@@ -475,10 +407,7 @@ impl<'a> Reader<'a> {
             let sum: f32 = w.iter().sum();
             if sum <= 0.0 {
                 return Err(self.err(
-                    format!(
-                        "meshes[{}] (Scene mesh {scene_mesh}), vertex {v}",
-                        mesh.index()
-                    ),
+                    format!("meshes[{}] (Scene mesh {scene_mesh}), vertex {v}", mesh.index()),
                     "skin weights sum to 0",
                 ));
             }
@@ -494,13 +423,7 @@ impl<'a> Reader<'a> {
         })
     }
 
-    fn expect(
-        &self,
-        acc: &gltf::Accessor,
-        place: &str,
-        dims: Dimensions,
-        types: &[DataType],
-    ) -> Result<()> {
+    fn expect(&self, acc: &gltf::Accessor, place: &str, dims: Dimensions, types: &[DataType]) -> Result<()> {
         if acc.dimensions() != dims || !types.contains(&acc.data_type()) {
             return Err(self.err(
                 place,

@@ -61,12 +61,7 @@ pub(super) struct Rec {
 #[inline(always)]
 pub(super) fn axes(g: usize) -> (usize, f32, usize, usize) {
     let k = g / 2;
-    (
-        k,
-        if g % 2 == 0 { 1.0 } else { -1.0 },
-        (k + 1) % 3,
-        (k + 2) % 3,
-    )
+    (k, if g % 2 == 0 { 1.0 } else { -1.0 }, (k + 1) % 3, (k + 2) % 3)
 }
 
 /// Arvo–Kirk's classification: the group and the 5D point of a ray. The major axis is the
@@ -87,8 +82,7 @@ pub(super) fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
     let p = [o.x, o.y, o.z, u, v];
     // `!(x >= 0)` also catches NaN.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    let bad =
-        !(tmin >= 0.0) || !(a[k] > 0.0) || !(u.is_finite() && v.is_finite()) || !o.is_finite();
+    let bad = !(tmin >= 0.0) || !(a[k] > 0.0) || !(u.is_finite() && v.is_finite()) || !o.is_finite();
     if bad {
         (UNBOUNDED, p)
     } else {
@@ -117,10 +111,7 @@ pub(super) struct Bound5 {
 
 impl Bound5 {
     pub(super) fn of(recs: &[Rec]) -> Self {
-        let mut b = Bound5 {
-            lo: [f32::INFINITY; 5],
-            hi: [f32::NEG_INFINITY; 5],
-        };
+        let mut b = Bound5 { lo: [f32::INFINITY; 5], hi: [f32::NEG_INFINITY; 5] };
         for r in recs {
             for d in 0..5 {
                 b.lo[d] = b.lo[d].min(r.p[d]);
@@ -161,12 +152,7 @@ impl Frustum {
             // c = max over the origin box of α·x_m + β·x_k (exact maximum, f32 evaluation).
             let xm = if alpha > 0.0 { b.hi[m] } else { b.lo[m] };
             let xk = if beta > 0.0 { b.hi[k] } else { b.lo[k] };
-            Plane5 {
-                m,
-                alpha,
-                beta,
-                thr: alpha * xm + beta * xk + margin,
-            }
+            Plane5 { m, alpha, beta, thr: alpha * xm + beta * xk + margin }
         };
         let (uh, ul) = (widen_up(b.hi[3]), widen_down(b.lo[3]));
         let (vh, vl) = (widen_up(b.hi[4]), widen_down(b.lo[4]));

@@ -99,62 +99,26 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
 /// Configurations the conformance suite checks besides the defaults: both culls, both stops,
 /// deep recursions (tiny limits), ray splits only, spatial splits everywhere, positions only.
 pub const PRESETS: &[Preset] = &[
-    Preset {
-        name: "frustum",
-        opts: &[("cull", "frustum"), ("tasks", "1")],
-    },
-    Preset {
-        name: "cone",
-        opts: &[("cull", "cone"), ("tasks", "1")],
-    },
+    Preset { name: "frustum", opts: &[("cull", "frustum"), ("tasks", "1")] },
+    Preset { name: "cone", opts: &[("cull", "cone"), ("tasks", "1")] },
     Preset {
         name: "frustum fixed tiny",
-        opts: &[
-            ("cull", "frustum"),
-            ("stop", "fixed"),
-            ("r_limit", "2"),
-            ("p_limit", "2"),
-            ("tasks", "3"),
-        ],
+        opts: &[("cull", "frustum"), ("stop", "fixed"), ("r_limit", "2"), ("p_limit", "2"), ("tasks", "3")],
     },
     Preset {
         name: "cone fixed tiny",
-        opts: &[
-            ("cull", "cone"),
-            ("stop", "fixed"),
-            ("r_limit", "2"),
-            ("p_limit", "2"),
-            ("tasks", "3"),
-        ],
+        opts: &[("cull", "cone"), ("stop", "fixed"), ("r_limit", "2"), ("p_limit", "2"), ("tasks", "3")],
     },
     Preset {
         name: "frustum cost tiny, ray splits only",
-        opts: &[
-            ("c_r", "1"),
-            ("c_g", "1"),
-            ("spatial", "false"),
-            ("tasks", "2"),
-        ],
+        opts: &[("c_r", "1"), ("c_g", "1"), ("spatial", "false"), ("tasks", "2")],
     },
     Preset {
         name: "cone cost tiny, spatial everywhere",
-        opts: &[
-            ("cull", "cone"),
-            ("c_r", "1"),
-            ("c_g", "1"),
-            ("spatial_ratio", "0"),
-            ("tasks", "2"),
-        ],
+        opts: &[("cull", "cone"), ("c_r", "1"), ("c_g", "1"), ("spatial_ratio", "0"), ("tasks", "2")],
     },
     Preset {
         name: "frustum, spatial everywhere, positions only, shallow",
-        opts: &[
-            ("spatial_ratio", "0"),
-            ("dir_weight", "0"),
-            ("stop", "fixed"),
-            ("r_limit", "1"),
-            ("p_limit", "1"),
-            ("max_depth", "12"),
-        ],
+        opts: &[("spatial_ratio", "0"), ("dir_weight", "0"), ("stop", "fixed"), ("r_limit", "1"), ("p_limit", "1"), ("max_depth", "12")],
     },
 ];

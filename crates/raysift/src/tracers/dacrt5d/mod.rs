@@ -76,9 +76,7 @@ use crate::error::Result;
 use crate::mem::reserve_exact_huge;
 use crate::rays::{HitBatch, RayBatch};
 use crate::scene::{Scene, Stamp};
-use crate::tracer::{
-    par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer,
-};
+use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer};
 use bound::Rec;
 use std::sync::Mutex;
 
@@ -198,41 +196,26 @@ impl Tracer for Dacrt5d {
             reserve_exact_huge(&mut self.boxes, n, true);
         }
         self.boxes.clear();
-        let (mut scale, mut lo_all, mut hi_all) =
-            (0.0f32, [f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        let (mut scale, mut lo_all, mut hi_all) = (0.0f32, [f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         for t in 0..n {
             let [a, b, c] = tris.get(t);
             let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
             let live = !(a == b && b == c) && lo.is_finite() && hi.is_finite();
             self.boxes.push(if live {
-                scale = scale
-                    .max(lo.abs().max_element())
-                    .max(hi.abs().max_element());
+                scale = scale.max(lo.abs().max_element()).max(hi.abs().max_element());
                 for k in 0..3 {
                     lo_all[k] = lo_all[k].min(lo[k]);
                     hi_all[k] = hi_all[k].max(hi[k]);
                 }
                 [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]
             } else {
-                [
-                    f32::INFINITY,
-                    f32::INFINITY,
-                    f32::INFINITY,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                    f32::NEG_INFINITY,
-                ]
+                [f32::INFINITY, f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY]
             });
         }
         self.scale = scale;
         self.extent = (0..3).map(|k| hi_all[k] - lo_all[k]).fold(0.0f32, f32::max);
         self.stamp = scene.stamp();
-        Ok(Stats::prepared(
-            &Built {
-                triangles: n as u64,
-            },
-            self.bytes(),
-        ))
+        Ok(Stats::prepared(&Built { triangles: n as u64 }, self.bytes()))
     }
 
     fn intersect(
@@ -245,18 +228,7 @@ impl Tracer for Dacrt5d {
         self.stamp.check(scene, self.name())?;
         let chunk = rays.len().div_ceil(self.tasks()).max(1);
         let tally: Tally<Counts> = par_ray_chunks(rays, hits, cost, chunk, |range, out, cost| {
-            self.run_task::<false>(
-                scene,
-                rays,
-                range,
-                chunk,
-                out.t,
-                out.prim,
-                out.u,
-                out.v,
-                &mut [],
-                cost,
-            )
+            self.run_task::<false>(scene, rays, range, chunk, out.t, out.prim, out.u, out.v, &mut [], cost)
         });
         Ok(tally.into_stats(rays.len()))
     }
@@ -270,21 +242,9 @@ impl Tracer for Dacrt5d {
     ) -> Result<Stats> {
         self.stamp.check(scene, self.name())?;
         let chunk = rays.len().div_ceil(self.tasks()).max(1);
-        let tally: Tally<Counts> =
-            par_occlusion_chunks(rays, occluded, cost, chunk, |range, out, cost| {
-                self.run_task::<true>(
-                    scene,
-                    rays,
-                    range,
-                    chunk,
-                    &mut [],
-                    &mut [],
-                    &mut [],
-                    &mut [],
-                    out,
-                    cost,
-                )
-            });
+        let tally: Tally<Counts> = par_occlusion_chunks(rays, occluded, cost, chunk, |range, out, cost| {
+            self.run_task::<true>(scene, rays, range, chunk, &mut [], &mut [], &mut [], &mut [], out, cost)
+        });
         Ok(tally.into_stats(rays.len()))
     }
 

@@ -42,23 +42,11 @@ pub(super) struct Task<'a, const ANY: bool> {
 impl<'a, const ANY: bool> Task<'a, ANY> {
     /// Node of bundle `g`: rays `recs[r0..r1]`, the parent's triangles `tri_idx[..ntp]`. With
     /// `bound` given the rays are the parent's (a spatial split's near half): no new cull.
-    pub(super) fn node(
-        &mut self,
-        g: usize,
-        r0: usize,
-        r1: usize,
-        ntp: usize,
-        depth: u32,
-        bound: Option<Bound5>,
-    ) {
+    pub(super) fn node(&mut self, g: usize, r0: usize, r1: usize, ntp: usize, depth: u32, bound: Option<Bound5>) {
         self.st.nodes += 1;
         let b = bound.unwrap_or_else(|| Bound5::of(&self.recs[r0..r1]));
         let s_all = self.scale.max(b.origin_scale());
-        let nt = if bound.is_some() {
-            ntp
-        } else {
-            self.cull(g, &b, s_all, ntp, depth)
-        };
+        let nt = if bound.is_some() { ntp } else { self.cull(g, &b, s_all, ntp, depth) };
         if let Some(c) = self.cost.as_mut() {
             let tests = if bound.is_some() { 0 } else { ntp as u64 };
             for r in &self.recs[r0..r1] {
@@ -70,10 +58,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return;
         }
         let leaf = match self.cfg.stop {
-            Stop::Cost => {
-                (nr as f64) * (nt as f64)
-                    < self.cfg.c_r as f64 * nr as f64 + self.cfg.c_g as f64 * nt as f64
-            }
+            Stop::Cost => (nr as f64) * (nt as f64) < self.cfg.c_r as f64 * nr as f64 + self.cfg.c_g as f64 * nt as f64,
             Stop::Fixed => nr < self.cfg.r_limit || nt < self.cfg.p_limit,
         };
         if leaf || depth >= self.cfg.max_depth {
@@ -133,22 +118,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 
     /// Splits the rays at the middle of their widest weighted dimension; false when they
     /// cannot be split (identical in every weighted dimension, or one side empty).
-    fn ray_split(
-        &mut self,
-        g: usize,
-        r0: usize,
-        r1: usize,
-        nt: usize,
-        depth: u32,
-        b: &Bound5,
-    ) -> bool {
+    fn ray_split(&mut self, g: usize, r0: usize, r1: usize, nt: usize, depth: u32, b: &Bound5) -> bool {
         let (mut dim, mut best) = (0, 0.0f32);
         for d in 0..5 {
-            let w = if d < 3 {
-                self.inv_extent
-            } else {
-                self.cfg.dir_weight
-            };
+            let w = if d < 3 { self.inv_extent } else { self.cfg.dir_weight };
             let score = (b.hi[d] - b.lo[d]) * w;
             if score > best {
                 (dim, best) = (d, score);
@@ -181,25 +154,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// has `s·x_k ≥ key − δ > P − δ` (`bound.rs`), and a hit at `t' ≤ z` on the ray would have
     /// `s·x_k = s·o_k + t'·|d_k| ≤ s·o_k + z·|d_k|` (`t' ≥ 0`). False when `P` separates nothing.
     #[allow(clippy::too_many_arguments)]
-    fn spatial_split(
-        &mut self,
-        g: usize,
-        r0: usize,
-        r1: usize,
-        nt: usize,
-        depth: u32,
-        b: &Bound5,
-        s_all: f32,
-    ) -> bool {
+    fn spatial_split(&mut self, g: usize, r0: usize, r1: usize, nt: usize, depth: u32, b: &Bound5, s_all: f32) -> bool {
         let (k, s, _, _) = axes(g);
         let boxes = self.boxes;
         let key = |t: u32| {
             let bx = &boxes[t as usize];
-            if s > 0.0 {
-                bx[k]
-            } else {
-                -bx[3 + k]
-            }
+            if s > 0.0 { bx[k] } else { -bx[3 + k] }
         };
         let sum: f64 = self.tri_idx[..nt].iter().map(|&t| key(t) as f64).sum();
         let plane = (sum / nt as f64) as f32;
@@ -272,14 +232,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                     ids.iter().any(|&t| {
                         n += 1;
                         let t = t as usize;
-                        intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax)
-                            .is_some()
+                        intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax).is_some()
                     })
                 };
                 self.occ[id] = hit;
             } else {
-                let (mut bt, mut bp, mut bu, mut bv) =
-                    (self.t[id], self.prim[id], self.u[id], self.v[id]);
+                let (mut bt, mut bp, mut bu, mut bv) = (self.t[id], self.prim[id], self.u[id], self.v[id]);
                 if four {
                     for (gi, g4) in groups.iter().enumerate() {
                         let h = intersect_triangle4(o, d, g4, tmin, bt);
@@ -297,15 +255,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 } else {
                     for &t in ids {
                         let tu = t as usize;
-                        if let Some(h) = intersect_triangle(
-                            o,
-                            d,
-                            tris.v0[tu],
-                            tris.v1[tu],
-                            tris.v2[tu],
-                            tmin,
-                            bt,
-                        ) {
+                        if let Some(h) = intersect_triangle(o, d, tris.v0[tu], tris.v1[tu], tris.v2[tu], tmin, bt) {
                             if closer(h.t, t, bt, bp) {
                                 (bt, bp, bu, bv) = (h.t, t, h.u, h.v);
                             }

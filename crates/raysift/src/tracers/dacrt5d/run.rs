@@ -46,11 +46,7 @@ impl Dacrt5d {
             tri_idx: reuse(sc.tri_idx, ntri, true),
             recs: reuse(sc.recs, len, true),
             scale: self.scale,
-            inv_extent: if self.extent > 0.0 {
-                1.0 / self.extent
-            } else {
-                0.0
-            },
+            inv_extent: if self.extent > 0.0 { 1.0 / self.extent } else { 0.0 },
             st: Counts::default(),
             cost,
         };
@@ -73,19 +69,12 @@ impl Dacrt5d {
         task.recs.resize(len, Rec::default());
         for i in range.clone() {
             let (g, p) = classify(rays.origin(i), rays.dir(i), rays.tmin[i]);
-            task.recs[next[g]] = Rec {
-                p,
-                id: (i - base) as u32,
-            };
+            task.recs[next[g]] = Rec { p, id: (i - base) as u32 };
             next[g] += 1;
         }
         let boxes = &self.boxes;
         task.tri_idx.extend(
-            boxes
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| b[0] <= b[3])
-                .map(|(t, _)| t as u32),
+            boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[3]).map(|(t, _)| t as u32),
         );
         let nlive = task.tri_idx.len();
         if nlive > 0 {
@@ -108,14 +97,8 @@ impl Dacrt5d {
         let peak = (4 * ntri + std::mem::size_of::<Rec>() * len) as u64;
         let st = task.st;
         if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
-            *g = Scratch {
-                tri_idx: task.tri_idx,
-                recs: task.recs,
-            };
+            *g = Scratch { tri_idx: task.tri_idx, recs: task.recs };
         }
-        Tally {
-            counts: st,
-            peak_bytes: peak,
-        }
+        Tally { counts: st, peak_bytes: peak }
     }
 }

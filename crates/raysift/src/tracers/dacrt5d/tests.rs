@@ -18,10 +18,7 @@ fn classification_by_strict_major_axis() {
     assert_eq!(classify(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0).0, UNBOUNDED);
     assert_eq!(classify(o, Vec3::X, -1.0).0, UNBOUNDED);
     assert_eq!(classify(o, Vec3::X, f32::NAN).0, UNBOUNDED);
-    assert_eq!(
-        classify(Vec3::splat(f32::INFINITY), Vec3::X, 0.0).0,
-        UNBOUNDED
-    );
+    assert_eq!(classify(Vec3::splat(f32::INFINITY), Vec3::X, 0.0).0, UNBOUNDED);
 }
 
 /// Triangles in axis planes and general ones far from the origin, and rays aimed at points on
@@ -36,18 +33,9 @@ fn culls_keep_every_grazing_hit() {
     let (mut hits, mut culled, mut far) = (0, 0, 0);
     for case in 0..20_000 {
         let scale = 10f32.powi(rng.gen_range(-2..4));
-        let c = Vec3::new(
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-        ) * scale;
+        let c = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)) * scale;
         let e = |rng: &mut rand_pcg::Pcg64Mcg| {
-            Vec3::new(
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-            ) * scale
-                * 0.1
+            Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)) * scale * 0.1
         };
         let (mut a, mut b, mut cc) = (c + e(&mut rng), c + e(&mut rng), c + e(&mut rng));
         if case % 2 == 0 {
@@ -67,11 +55,7 @@ fn culls_keep_every_grazing_hit() {
         }
         let target = a + (b - a) * s + (cc - a) * t;
         let dist = scale * 10f32.powi(rng.gen_range(0..3));
-        let mut dir = Vec3::new(
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-        );
+        let mut dir = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
         if case % 7 == 0 {
             // Grazing: nearly in the triangle's plane.
             let n = (b - a).cross(cc - a).normalize_or(Vec3::Z);
@@ -84,36 +68,18 @@ fn culls_keep_every_grazing_hit() {
         }
         let lo = a.min(b).min(cc).to_array();
         let hi = a.max(b).max(cc).to_array();
-        let Some(_) = intersect_triangle(o, dir, a, b, cc, 0.0, f32::INFINITY) else {
-            continue;
-        };
+        let Some(_) = intersect_triangle(o, dir, a, b, cc, 0.0, f32::INFINITY) else { continue };
         hits += 1;
         let (g, p) = classify(o, dir, 0.0);
         assert!(g < UNBOUNDED);
-        let s_all = o
-            .abs()
-            .max_element()
-            .max(Vec3::from(lo).abs().max_element())
-            .max(Vec3::from(hi).abs().max_element());
+        let s_all = o.abs().max_element().max(Vec3::from(lo).abs().max_element()).max(Vec3::from(hi).abs().max_element());
         let mut recs = vec![Rec { p, id: 0 }];
         for k in 0..=(case % 3) {
             let b1 = Bound5::of(&recs);
-            assert!(
-                Frustum::new(g, &b1, s_all).keeps(&lo, &hi),
-                "frustum lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}"
-            );
-            assert!(
-                Cone5::new(g, &b1, s_all).keeps(&lo, &hi),
-                "cone lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}"
-            );
+            assert!(Frustum::new(g, &b1, s_all).keeps(&lo, &hi), "frustum lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}");
+            assert!(Cone5::new(g, &b1, s_all).keeps(&lo, &hi), "cone lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}");
             // A neighbour in the same bundle.
-            let d2 = (dir
-                + Vec3::new(
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                ) * 0.01)
-                .normalize();
+            let d2 = (dir + Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)) * 0.01).normalize();
             let (g2, p2) = classify(o + e(&mut rng) * 0.01, d2, 0.0);
             if g2 == g {
                 recs.push(Rec { p: p2, id: 1 });
@@ -122,19 +88,12 @@ fn culls_keep_every_grazing_hit() {
         // The same triangle moved away sideways (perpendicular to the ray by 2 sizes):
         // mostly culled by the single ray's frustum and cone.
         let side = dir.any_orthonormal_vector() * scale * 2.0;
-        let (lo2, hi2) = (
-            (Vec3::from(lo) + side).to_array(),
-            (Vec3::from(hi) + side).to_array(),
-        );
+        let (lo2, hi2) = ((Vec3::from(lo) + side).to_array(), (Vec3::from(hi) + side).to_array());
         let b1 = Bound5::of(&recs[..1]);
         far += 1;
         culled += (!Frustum::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
         culled += (!Cone5::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
     }
     assert!(hits > 5_000, "{hits}");
-    assert!(
-        culled as f64 > 1.8 * far as f64,
-        "culls too weak: {culled} of {}",
-        2 * far
-    );
+    assert!(culled as f64 > 1.8 * far as f64, "culls too weak: {culled} of {}", 2 * far);
 }

@@ -34,30 +34,12 @@ pub type Config = BuildConfig;
 
 /// One line per option, for `raysift tracers --verbose`.
 pub const OPTION_DOCS: &[OptionDoc] = &[
-    OptionDoc {
-        key: "traversal_cost",
-        doc: "SAH cost of an interior node, relative to a triangle test",
-    },
-    OptionDoc {
-        key: "intersection_cost",
-        doc: "SAH cost of a ray/triangle test",
-    },
-    OptionDoc {
-        key: "empty_bonus",
-        doc: "share of the intersection cost saved when a side is empty, in [0, 1)",
-    },
-    OptionDoc {
-        key: "max_leaf",
-        doc: "nodes with at most this many triangles become leaves (1..=255)",
-    },
-    OptionDoc {
-        key: "max_depth",
-        doc: "deepest leaf (0..=64; 0: 8 + 1.3 log2 N)",
-    },
-    OptionDoc {
-        key: "parallel_threshold",
-        doc: "nodes with at least this many triangles build in parallel",
-    },
+    OptionDoc { key: "traversal_cost", doc: "SAH cost of an interior node, relative to a triangle test" },
+    OptionDoc { key: "intersection_cost", doc: "SAH cost of a ray/triangle test" },
+    OptionDoc { key: "empty_bonus", doc: "share of the intersection cost saved when a side is empty, in [0, 1)" },
+    OptionDoc { key: "max_leaf", doc: "nodes with at most this many triangles become leaves (1..=255)" },
+    OptionDoc { key: "max_depth", doc: "deepest leaf (0..=64; 0: 8 + 1.3 log2 N)" },
+    OptionDoc { key: "parallel_threshold", doc: "nodes with at least this many triangles build in parallel" },
 ];
 
 /// Configurations the conformance suite checks besides the defaults.

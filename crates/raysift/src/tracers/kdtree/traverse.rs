@@ -58,8 +58,7 @@ pub fn walk<const ANY: bool>(
     let mut best: Best = (rays.tmax[i], MISS, 0.0, 0.0);
     let ray = SlabRay::new(o, d);
     c.ray_box += 1;
-    let Some((mut tn, mut tf)) = ray.interval(tree.bounds.min, tree.bounds.max, tmin, best.0)
-    else {
+    let Some((mut tn, mut tf)) = ray.interval(tree.bounds.min, tree.bounds.max, tmin, best.0) else {
         return best;
     };
     let (nodes, (v0, v1, v2)) = (&tree.nodes[..], (&soup.v0, &soup.v1, &soup.v2));
@@ -89,22 +88,14 @@ pub fn walk<const ANY: bool>(
             let (lo, hi) = KdTree::split_window(ts);
             let below = node + 1;
             let above = n.above() as usize;
-            let (near, far) = if ray.neg[a] {
-                (above, below)
-            } else {
-                (below, above)
-            };
+            let (near, far) = if ray.neg[a] { (above, below) } else { (below, above) };
             let near_exit = if hi < tf { hi } else { tf };
             let far_entry = if lo > tn { lo } else { tn };
             let go_near = tn <= near_exit;
             let go_far = far_entry <= tf && far_entry <= best.0;
             match (go_near, go_far) {
                 (true, true) => {
-                    stack[sp] = StackEntry {
-                        node: far as u32,
-                        tn: far_entry,
-                        tf,
-                    };
+                    stack[sp] = StackEntry { node: far as u32, tn: far_entry, tf };
                     sp += 1;
                     (node, tf) = (near, near_exit);
                     continue 'walk;
