@@ -114,6 +114,8 @@ pub struct SphereTree {
     pub root_r: f32,
     /// Build options.
     pub cfg: Option<BuildConfig>,
+    /// Part of each mesh (`u32::MAX` for empty meshes): updates find a moved mesh's part in O(1).
+    pub part_of_mesh: Vec<u32>,
 }
 
 /// What an update did.
@@ -200,10 +202,12 @@ impl SphereTree {
             cfg: Some(cfg),
             ..Default::default()
         };
+        t.part_of_mesh = vec![u32::MAX; scene.meshes().len()];
         for (m, mesh) in scene.meshes().iter().enumerate() {
             if mesh.indices.is_empty() {
                 continue;
             }
+            t.part_of_mesh[m] = t.parts.len() as u32;
             let first = scene.mesh_prims(m).start as u32;
             let local = |f: usize| mesh.indices[f].map(|i| mesh.positions[i as usize]);
             // Morton order of local centroids.
@@ -279,7 +283,14 @@ impl SphereTree {
             return None;
         };
         let mut u = Updated::default();
-        let part_of = |parts: &[Part], m: usize| parts.iter().position(|p| p.mesh as usize == m);
+        let part_of_mesh = std::mem::take(&mut self.part_of_mesh);
+        let part_of = |_: &[Part], m: usize| {
+            part_of_mesh
+                .get(m)
+                .copied()
+                .filter(|&p| p != u32::MAX)
+                .map(|p| p as usize)
+        };
         for &m in deformed {
             if let Some(p) = part_of(&self.parts, m) {
                 self.refit_leaves(scene, p);
@@ -296,6 +307,7 @@ impl SphereTree {
             }
         }
         self.place_root();
+        self.part_of_mesh = part_of_mesh;
         Some(u)
     }
 
