@@ -35,6 +35,9 @@ fn open(spec: &str) -> Scene {
     procedural::open(spec).expect("scene")
 }
 
+/// (label, registry name, options).
+type Contender = (&'static str, &'static str, Vec<(String, String)>);
+
 fn opts(s: &[(&str, &str)]) -> Vec<(String, String)> {
     s.iter()
         .map(|(k, v)| (k.to_string(), v.to_string()))
@@ -179,7 +182,7 @@ fn table5(spec: &str, origins: usize) {
         sh.len() / 256,
         rayon::current_num_threads()
     );
-    let contenders: Vec<(&str, &str, Vec<(String, String)>)> = vec![
+    let contenders: Vec<Contender> = vec![
         ("rtrps", "rtrps", vec![]),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
@@ -219,7 +222,7 @@ fn table6(spec: &str, frames: u32) {
     let scene = open(spec);
     let mut anim = Animation::new(&scene, Motion::SpinParts).unwrap();
     let cam = Camera::framing(&scene.bounds().union(scene.bounds()), 45.0, 1.0).rays(1024, 1024);
-    let names: Vec<(&str, &str, Vec<(String, String)>)> = vec![
+    let names: Vec<Contender> = vec![
         ("rtrps", "rtrps", vec![]),
         ("bvh rebuild", "bvh", vec![]),
         ("bvh refit", "bvh", opts(&[("update", "refit")])),

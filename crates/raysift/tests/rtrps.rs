@@ -217,7 +217,7 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
             Affine3A::from_rotation_translation(spin, Vec3::new(0.0, 0.1 * f as f32, 0.0)),
         )
         .unwrap();
-        if f % 2 == 0 {
+        if f.is_multiple_of(2) {
             let pos: Vec<Vec3> = s.meshes()[2]
                 .positions
                 .iter()

@@ -165,6 +165,7 @@ pub fn fan_bound(r: f32, dist: f32, slack: f32, e: f32) -> f32 {
 /// or when the sphere lies entirely before `tmin` or after `tmax` along the ray (with a relative
 /// margin of `2^-12` on `t`). `dd = d·d`, `dl = |d|`.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn ray_sphere(
     o: glam::Vec3,
     d: glam::Vec3,
@@ -237,6 +238,7 @@ mod tests {
             if let Some(s) = f.monotone(0, 8, c, 1e-6) {
                 // Hits are contiguous and every miss's sign points towards them.
                 let first = hits.iter().position(|&h| h);
+                #[allow(clippy::needless_range_loop)]
                 for k in 0..9 {
                     let v = s * f.signed(k, c);
                     if !hits[k] {

@@ -46,6 +46,7 @@ fn local(p: &Part, o: Vec3, d: Vec3) -> Option<Local> {
 /// Walks part `p` for the ray, calling `leaf(l, tmax)` on each leaf whose sphere passes; `leaf`
 /// returns the new `tmax`, or `None` to stop the whole walk.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 fn walk(
     tree: &SphereTree,
     p: &Part,
