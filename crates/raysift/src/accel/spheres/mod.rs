@@ -272,6 +272,15 @@ impl SphereTree {
             t.place_part(p, mesh.transform);
         }
         t.place_root();
+        // Pushed one by one: give back the growth slack (bytes() reports capacities).
+        t.inner_c.shrink_to_fit();
+        t.inner_r.shrink_to_fit();
+        t.inner_leaves.shrink_to_fit();
+        t.leaf_c.shrink_to_fit();
+        t.leaf_r.shrink_to_fit();
+        t.leaf_tris.shrink_to_fit();
+        t.tris.shrink_to_fit();
+        t.parts.shrink_to_fit();
         t
     }
 
