@@ -86,3 +86,16 @@ fn bvh_is_nodes_plus_40_bytes_per_triangle() {
         );
     }
 }
+
+/// `rtrps` holds its sphere hierarchy: per leaf a centre, radius and triangle range (24 B), per
+/// inner sphere the same, and the triangle ids in leaf order (4 B per triangle); with leaves of 2
+/// triangles and inner spheres of 16 leaves, 16.75 B per triangle (plus the parts).
+#[test]
+fn rtrps_is_about_17_bytes_per_triangle() {
+    for s in [procedural::icosphere(50_000), procedural::soup(50_000, 3)] {
+        let mut t = tracers::create("rtrps", &[]).unwrap();
+        t.prepare(&s).unwrap();
+        let per = t.bytes() as f64 / s.len() as f64;
+        assert!((16.5..17.5).contains(&per), "{} B per triangle on {}", per, s.name);
+    }
+}

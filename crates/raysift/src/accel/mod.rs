@@ -6,8 +6,8 @@
 //! |---|---|---|
 //! | binned-SAH BVH, with refit | `bvh` (and cone tracing's BVH walk, next) | [`bvh`] |
 //! | SAH kd-tree (event-sorted build) | `kdtree` (and the shafts and cone tracing, next) | [`kdtree`] |
-//!
-//! Next: the bounding-sphere hierarchy (RTRPS).
+//! | bounding-sphere hierarchy, per-part rigid update and refit | `rtrps` | [`spheres`] |
 
 pub mod bvh;
 pub mod kdtree;
+pub mod spheres;

@@ -10,6 +10,7 @@
 //! | `dacrt` | divide-and-conquer ray tracing (Mora 2011) | [`dacrt`] |
 //! | `dacrt5d` | divide-and-conquer over 5D ray hierarchies (Hoedt; Arvo & Kirk 1987) | [`dacrt5d`] |
 //! | `kdtree` | SAH kd-tree (Wald & Havran 2006), single-ray stack walk | [`kdtree`] |
+//! | `rtrps` | bounding spheres and ray-planes (Suzuki 2010) | [`rtrps`] |
 
 pub mod bvh;
 pub mod cone;
@@ -17,6 +18,7 @@ pub mod dacrt;
 pub mod dacrt5d;
 pub mod kdtree;
 pub mod naive;
+pub mod rtrps;
 
 use crate::error::{Error, Result};
 use crate::tracer::{CounterDocs, Tracer};
@@ -186,6 +188,17 @@ pub static REGISTRY: &[Entry] = &[
         presets: kdtree::PRESETS,
         built_counters: kdtree::COUNTERS.0,
         work_counters: kdtree::COUNTERS.1,
+    },
+    Entry {
+        name: "rtrps",
+        paper: "Suzuki et al. 2010, A fast ray-tracing using bounding spheres and frustum rays for dynamic scene rendering (RTRPS)",
+        summary: "bounding-sphere hierarchy updated per part, N×N ray groups tested as row and column ray-planes; other rays alone",
+        create: |opts| Ok(Box::new(rtrps::Rtrps::new(config_from_opts("rtrps", opts)?)?)),
+        defaults: defaults_of::<rtrps::Config>,
+        option_docs: rtrps::OPTION_DOCS,
+        presets: rtrps::PRESETS,
+        built_counters: rtrps::COUNTERS.0,
+        work_counters: rtrps::COUNTERS.1,
     },
 ];
 

@@ -1,0 +1,274 @@
+//! RTRPS (Suzuki 2010) measurements for BENCHMARKS.md § RTRPS (issue #14).
+//!
+//! `cargo run --release -p raysift --example rtrps_bench -- table3`: spheres, leaf spheres and
+//! triangles per leaf for the bunny, Sponza and the dragon (leaf sizes 1 and 2, both centre rules).
+//! `... -- fig11 [scene] [origins]`: plane/sphere tests split as Fig. 11 (all planes, culling,
+//! tree, both) on 16×16 area-light shadow grids and 8×8 hemisphere bounce grids from camera hits.
+//! `... -- table5 [scene] [origins]`: the same shadow grids timed: rtrps (planes) vs its random-ray
+//! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3.
+//! `... -- table6 [scene] [frames]`: first hit at 1024²: update + trace per frame under
+//! `spin-parts`, rtrps vs `bvh` rebuild and `bvh update=refit`.
+//! `[scene]` is a path or a procedural spec; default the bunny from shared/scenes.
+
+use glam::Vec3;
+use raysift::rays::{generate, Camera, Ray, RayBatch, RayLayout};
+use raysift::scene::animate::{Animation, Motion};
+use raysift::scene::{procedural, Scene};
+use raysift::tracers;
+use std::time::Instant;
+
+fn open(spec: &str) -> Scene {
+    let shared = [
+        "../shared/scenes",
+        "../../shared/scenes",
+        "/work/shared/scenes",
+    ]
+    .iter()
+    .map(std::path::PathBuf::from)
+    .find(|p| p.is_dir());
+    if let Some(dir) = shared {
+        let p = dir.join(spec);
+        if p.exists() {
+            return raysift::scene::load(&p).expect("load");
+        }
+    }
+    procedural::open(spec).expect("scene")
+}
+
+/// (label, registry name, options).
+type Contender = (&'static str, &'static str, Vec<(String, String)>);
+
+fn opts(s: &[(&str, &str)]) -> Vec<(String, String)> {
+    s.iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+/// Camera hits at 256² and, from every `step`-th, a 16×16 shadow grid towards a square light
+/// above the scene and an 8×8 cosine hemisphere grid.
+fn groups(scene: &Scene, origins: usize) -> (RayBatch, RayBatch) {
+    let b = scene.bounds();
+    let cam = Camera::framing(&b, 45.0, 1.0).rays(256, 256);
+    let mut naive = tracers::create("bvh", &[]).unwrap();
+    naive.prepare(scene).unwrap();
+    let (hits, _) = naive.intersect_timed(scene, &cam).unwrap();
+    let hit: Vec<usize> = (0..cam.len()).filter(|&i| hits.is_hit(i)).collect();
+    let step = (hit.len() / origins.max(1)).max(1);
+    let eps = generate::surface_offset(scene);
+    let e = b.extent();
+    let centre = b.center() + Vec3::new(0.3 * e.x, 1.2 * e.y, 0.4 * e.z);
+    let (mut sh, mut bo) = (Vec::new(), Vec::new());
+    for &i in hit.iter().step_by(step) {
+        let (p, n) = generate::hit_frame(scene, &cam, &hits, i);
+        let o = p + n * eps;
+        for r in 0..16 {
+            for c in 0..16 {
+                let y = centre
+                    + Vec3::new(
+                        (c as f32 - 7.5) / 16.0 * 0.3 * e.x,
+                        0.0,
+                        (r as f32 - 7.5) / 16.0 * 0.3 * e.z,
+                    );
+                sh.push(Ray {
+                    origin: o,
+                    dir: y - o,
+                    tmin: 0.0,
+                    tmax: 1.0,
+                });
+            }
+        }
+        for c in 0..64 {
+            let (a, bb) = ((c % 8) as f32 + 0.5, (c / 8) as f32 + 0.5);
+            bo.push(Ray {
+                origin: o,
+                dir: generate::cosine_direction(n, a / 8.0, bb / 8.0),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
+        }
+    }
+    let mut sh = RayBatch::from_rays(sh);
+    sh.layout = RayLayout::OriginGrids { side: 16 };
+    let mut bo = RayBatch::from_rays(bo);
+    bo.layout = RayLayout::OriginGrids { side: 8 };
+    (sh, bo)
+}
+
+fn table3() {
+    println!("| scene | triangles | leaf_size | centre | spheres | parts | inner | leaves | triangles per leaf | build ms |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for spec in ["bun_zipper.ply", "sponza.obj.gz", "dragon_vrip.ply.gz"] {
+        let scene = open(spec);
+        for (ls, centre) in [("1", "box"), ("2", "box"), ("2", "mean"), ("4", "box")] {
+            let mut t =
+                tracers::create("rtrps", &opts(&[("leaf_size", ls), ("centre", centre)])).unwrap();
+            let st = t.prepare_timed(&scene).unwrap();
+            let g = |k: &str| st.built.get(k);
+            println!(
+                "| {spec} | {} | {ls} | {centre} | {} | {} | {} | {} | {:.2} | {:.0} |",
+                scene.len(),
+                g("spheres"),
+                g("parts"),
+                g("inner"),
+                g("leaves"),
+                g("triangles") as f64 / g("leaves") as f64,
+                st.prepare_ms
+            );
+        }
+    }
+}
+
+fn fig11(spec: &str, origins: usize) {
+    let scene = open(spec);
+    let (sh, bo) = groups(&scene, origins);
+    println!(
+        "scene {spec} ({} triangles): {} shadow rays (16x16 grids), {} bounce rays (8x8 grids)",
+        scene.len(),
+        sh.len(),
+        bo.len()
+    );
+    println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | rays reproduced | tri tests |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for (what, rays, occl) in [("shadow 16x16", &sh, true), ("bounce 8x8", &bo, false)] {
+        for centre in ["box", "mean"] {
+            let mut base = 0;
+            for (name, c, t) in [
+                ("all planes", "false", "false"),
+                ("culling", "true", "false"),
+                ("tree", "false", "true"),
+                ("culling+tree", "true", "true"),
+            ] {
+                let mut tr = tracers::create(
+                    "rtrps",
+                    &opts(&[("culling", c), ("tree", t), ("centre", centre)]),
+                )
+                .unwrap();
+                tr.prepare(&scene).unwrap();
+                let w = if occl {
+                    tr.occluded_timed(&scene, rays).unwrap().1.work
+                } else {
+                    tr.intersect_timed(&scene, rays).unwrap().1.work
+                };
+                let (o, i) = (w.get("outline_tests"), w.get("internal_tests"));
+                if base == 0 {
+                    base = o + i;
+                }
+                println!(
+                    "| {what} | {name} | {centre} | {o} | {i} | {} | {:.1}% | {} | {} | {} | {} |",
+                    o + i,
+                    100.0 * (o + i) as f64 / base as f64,
+                    w.get("spheres_visited"),
+                    w.get("spheres_culled"),
+                    w.get("rays_reproduced"),
+                    w.get("tri_tests")
+                );
+            }
+        }
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn table5(spec: &str, origins: usize) {
+    let scene = open(spec);
+    let (sh, _) = groups(&scene, origins);
+    println!(
+        "scene {spec} ({} triangles): {} shadow rays in {} 16x16 grids, {} threads",
+        scene.len(),
+        sh.len(),
+        sh.len() / 256,
+        rayon::current_num_threads()
+    );
+    let contenders: Vec<Contender> = vec![
+        ("rtrps", "rtrps", vec![]),
+        ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
+        ("bvh", "bvh", vec![]),
+        ("dacrt", "dacrt", vec![]),
+    ];
+    let mut live: Vec<_> = contenders
+        .iter()
+        .map(|(_, n, o)| tracers::create(n, o).unwrap())
+        .collect();
+    let mut prep = vec![0.0; live.len()];
+    for (k, t) in live.iter_mut().enumerate() {
+        prep[k] = t.prepare_timed(&scene).unwrap().prepare_ms;
+    }
+    let mut times = vec![Vec::new(); live.len()];
+    let mut want = None;
+    for _ in 0..3 {
+        for (k, t) in live.iter().enumerate() {
+            let t0 = Instant::now();
+            let (occ, _) = t.occluded_timed(&scene, &sh).unwrap();
+            times[k].push(t0.elapsed().as_secs_f64() * 1e3);
+            match &want {
+                None => want = Some(occ),
+                Some(w) => assert_eq!(w, &occ, "{} disagrees", contenders[k].0),
+            }
+        }
+    }
+    let base = median(times[0].clone());
+    println!("| tracer | build ms | trace ms (median of 3) | trace / rtrps |");
+    println!("|---|---|---|---|");
+    for (k, (name, _, _)) in contenders.iter().enumerate() {
+        let m = median(times[k].clone());
+        println!("| {name} | {:.1} | {m:.1} | {:.2} |", prep[k], m / base);
+    }
+}
+
+fn table6(spec: &str, frames: u32) {
+    let scene = open(spec);
+    let mut anim = Animation::new(&scene, Motion::SpinParts).unwrap();
+    let cam = Camera::framing(&scene.bounds().union(scene.bounds()), 45.0, 1.0).rays(1024, 1024);
+    let names: Vec<Contender> = vec![
+        ("rtrps", "rtrps", vec![]),
+        ("bvh rebuild", "bvh", vec![]),
+        ("bvh refit", "bvh", opts(&[("update", "refit")])),
+    ];
+    let mut live: Vec<_> = names
+        .iter()
+        .map(|(_, n, o)| tracers::create(n, o).unwrap())
+        .collect();
+    let mut upd = vec![Vec::new(); live.len()];
+    let mut tr = vec![Vec::new(); live.len()];
+    for f in 0..frames {
+        let s = anim.at(anim.frame_time(f, frames)).unwrap();
+        for (k, t) in live.iter_mut().enumerate() {
+            let st = t.prepare_timed(s).unwrap();
+            let (_, ts) = t.intersect_timed(s, &cam).unwrap();
+            if f > 0 {
+                upd[k].push(st.prepare_ms);
+                tr[k].push(ts.trace_ms);
+            }
+        }
+    }
+    println!("scene {spec} (spin-parts, {} meshes, {} triangles), 1024x1024 first hit, {} frames after the first", scene.meshes().len(), scene.len(), frames - 1);
+    println!("| tracer | update ms | trace ms | total ms | total / rtrps |");
+    println!("|---|---|---|---|---|");
+    let tot = |k: usize| median(upd[k].clone()) + median(tr[k].clone());
+    for (k, (name, _, _)) in names.iter().enumerate() {
+        println!(
+            "| {name} | {:.2} | {:.1} | {:.1} | {:.2} |",
+            median(upd[k].clone()),
+            median(tr[k].clone()),
+            tot(k),
+            tot(k) / tot(0)
+        );
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let what = args.first().map(String::as_str).unwrap_or("table3");
+    let spec = args.get(1).map(String::as_str).unwrap_or("bun_zipper.ply");
+    let n: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(2000);
+    match what {
+        "table3" => table3(),
+        "fig11" => fig11(spec, n),
+        "table5" => table5(spec, n),
+        "table6" => table6(spec, n.min(50) as u32),
+        _ => eprintln!("usage: rtrps_bench table3 | fig11 [scene] [origins] | table5 [scene] [origins] | table6 [scene] [frames]"),
+    }
+}

@@ -1,0 +1,470 @@
+//! The bounding-sphere hierarchy of RTRPS (Suzuki 2010, §2.1, §4.1): scene → parts (one per
+//! mesh, the scene graph's rigid parts) → inner spheres (runs of leaves) → leaf spheres of a few
+//! spatially close triangles of one mesh.
+//!
+//! **Frames.** Every sphere below a part is stored in the part's *local* (mesh) frame, with the
+//! part's local-to-world transform beside it. A rigid motion of a mesh ([`SphereTree::update`],
+//! `Change::Meshes { moved }`) therefore rewrites only that part's transform, its world sphere and
+//! the scene sphere: O(1) per moved part, no triangle and no leaf touched (Algorithm 1's "affine
+//! transformation of each sphere", done lazily: the tracer brings each ray group's frame into the
+//! part's frame, 18 flops per sphere centre as in §3.1.1, and random rays are brought into it
+//! once per ray and part). A deformation (`deformed`) re-centres that part's leaf spheres from
+//! its new local positions (same leaves, same triangles: linear in its triangles, no rebuild),
+//! then its inner spheres and part sphere (linear in its leaves).
+//!
+//! **Leaves** (the paper is silent on how; ours): a mesh's triangles in Morton order of their
+//! local centroids (10 bits per axis), cut into runs of `leaf_size`; inner spheres are runs of
+//! `cluster` consecutive leaves (`cluster = 0`: leaves hang from the part directly, the paper's
+//! depth 3). A leaf's centre is the centre of its vertices' box ([`Centre::Box`]) or their mean
+//! ([`Centre::Mean`]); measured in BENCHMARKS.md § RTRPS.
+//!
+//! **Radii are exact bounds of what the shared triangle test can report.** A hit of
+//! `geom::intersect_triangle` lies in the triangle's world bounding box (the box gate puts it
+//! there), not necessarily on the triangle; under any rotation, the world box of a triangle whose
+//! corners lie within `ρ` of a point `c_t` lies within `√3·ρ` of `c_t` (the box of a ball). So a
+//! leaf's radius is `max_t |c_t − C| + √3·ρ_t` over its triangles (local frame), and a world
+//! radius is the local one times `σ`, a bound on the transform's largest stretch (Gershgorin on
+//! `AᵀA`; 1 for rigid motions). Parents bound children: `R = max |c_i − C| + r_i`. Tracers add an
+//! absolute margin `SLACK · scale` for the rounding of the transforms (see [`SLACK`]).
+
+use crate::geom::Aabb;
+use crate::scene::{Change, Scene};
+use glam::{Affine3A, DMat3, DVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Relative rounding margin of every sphere test (`2^-15` of the largest coordinate magnitude
+/// involved): the scene's bake of world corners, the tracers' frame transforms and sphere tests
+/// each round by a few units of `2^-24`; this covers them more than thirty times over.
+pub const SLACK: f32 = 1.0 / 32768.0;
+
+/// How a leaf sphere's centre is chosen.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Centre {
+    /// Centre of the box of the leaf's vertices.
+    #[default]
+    Box,
+    /// Mean of the leaf's vertices.
+    Mean,
+}
+
+/// Build options of the hierarchy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildConfig {
+    /// Triangles per leaf sphere (1..=64).
+    pub leaf_size: usize,
+    /// Leaves per inner sphere (0: none).
+    pub cluster: usize,
+    /// Leaf centre rule.
+    pub centre: Centre,
+}
+
+/// One part: a mesh's spheres and its transform.
+#[derive(Clone, Debug)]
+pub struct Part {
+    /// The mesh.
+    pub mesh: u32,
+    /// Part sphere, local frame.
+    pub centre: Vec3,
+    /// Part sphere radius, local frame.
+    pub radius: f32,
+    /// Inner spheres of the part (empty when leaves hang from the part).
+    pub inner: std::ops::Range<u32>,
+    /// Leaves of the part.
+    pub leaves: std::ops::Range<u32>,
+    /// Local-to-world transform (the mesh's).
+    pub xf: Affine3A,
+    /// World-to-local, computed in f64 (`None` when the transform is singular or
+    /// ill-conditioned: random rays then test the part's triangles without sphere culls).
+    pub inv: Option<Affine3A>,
+    /// Bound on the transform's largest stretch (world radius = σ · local radius).
+    pub sigma: f32,
+    /// Bound on the inverse's largest stretch.
+    pub sigma_inv: f32,
+    /// Largest `|local centre|∞ + local radius` over the part's spheres (margin scale).
+    pub extent: f32,
+    /// World sphere centre.
+    pub world_centre: Vec3,
+    /// World sphere radius.
+    pub world_radius: f32,
+}
+
+/// The hierarchy: parts, inner spheres and leaves as structures of arrays.
+#[derive(Clone, Debug, Default)]
+pub struct SphereTree {
+    /// Parts, one per non-empty mesh.
+    pub parts: Vec<Part>,
+    /// Inner sphere centres (local).
+    pub inner_c: Vec<Vec3>,
+    /// Inner sphere radii (local).
+    pub inner_r: Vec<f32>,
+    /// Leaves of each inner sphere.
+    pub inner_leaves: Vec<[u32; 2]>,
+    /// Leaf centres (local).
+    pub leaf_c: Vec<Vec3>,
+    /// Leaf radii (local).
+    pub leaf_r: Vec<f32>,
+    /// Triangles of each leaf: range of [`SphereTree::tris`].
+    pub leaf_tris: Vec<[u32; 2]>,
+    /// Primitive ids in leaf order.
+    pub tris: Vec<u32>,
+    /// Scene sphere (world).
+    pub root_c: Vec3,
+    /// Scene sphere radius.
+    pub root_r: f32,
+    /// Build options.
+    pub cfg: Option<BuildConfig>,
+    /// Part of each mesh (`u32::MAX` for empty meshes): updates find a moved mesh's part in O(1).
+    pub part_of_mesh: Vec<u32>,
+}
+
+/// What an update did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Updated {
+    /// Parts whose transform was rewritten.
+    pub moved: usize,
+    /// Leaves re-centred (deformed parts).
+    pub refit_leaves: usize,
+}
+
+fn morton10(x: u32) -> u64 {
+    let mut x = (x & 0x3ff) as u64;
+    x = (x | (x << 16)) & 0x0300_00ff;
+    x = (x | (x << 8)) & 0x0300_f00f;
+    x = (x | (x << 4)) & 0x030c_30c3;
+    x = (x | (x << 2)) & 0x0924_9249;
+    x
+}
+
+/// Bounding sphere (f64) of a leaf's triangles, as the module doc states.
+fn leaf_sphere(tris: impl Iterator<Item = [Vec3; 3]> + Clone, centre: Centre) -> (Vec3, f32) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    let (mut sum, mut n) = (DVec3::ZERO, 0.0);
+    for t in tris.clone() {
+        for v in t {
+            let v = v.as_dvec3();
+            lo = lo.min(v);
+            hi = hi.max(v);
+            sum += v;
+            n += 1.0;
+        }
+    }
+    let c = match centre {
+        Centre::Box => (lo + hi) * 0.5,
+        Centre::Mean => sum / n,
+    };
+    let mut r: f64 = 0.0;
+    for t in tris {
+        let [a, b, cc] = t.map(|v| v.as_dvec3());
+        let ct = (a.min(b).min(cc) + a.max(b).max(cc)) * 0.5;
+        let rho = (a - ct)
+            .length()
+            .max((b - ct).length())
+            .max((cc - ct).length());
+        r = r.max((ct - c).length() + 3f64.sqrt() * rho);
+    }
+    (c.as_vec3(), round_up(r))
+}
+
+fn round_up(r: f64) -> f32 {
+    (r * (1.0 + 1e-6)) as f32 + f32::MIN_POSITIVE
+}
+
+/// Sphere (f64) bounding spheres `(c_i, r_i)`.
+fn parent_sphere(children: impl Iterator<Item = (Vec3, f32)> + Clone) -> (Vec3, f32) {
+    let mut b = Aabb::EMPTY;
+    for (c, r) in children.clone() {
+        b = b.grow(c - Vec3::splat(r)).grow(c + Vec3::splat(r));
+    }
+    let c = ((b.min.as_dvec3() + b.max.as_dvec3()) * 0.5).as_vec3();
+    let r = children
+        .map(|(ci, ri)| (ci.as_dvec3() - c.as_dvec3()).length() + ri as f64)
+        .fold(0.0, f64::max);
+    (c, round_up(r))
+}
+
+/// Upper bound of the largest singular value of `m` (Gershgorin on `mᵀm`).
+fn stretch(m: DMat3) -> f64 {
+    let g = m.transpose() * m;
+    let rows = [g.row(0), g.row(1), g.row(2)];
+    let s2 = rows
+        .iter()
+        .map(|r| r.x.abs() + r.y.abs() + r.z.abs())
+        .fold(0.0, f64::max);
+    s2.sqrt() * (1.0 + 1e-6)
+}
+
+impl SphereTree {
+    /// Builds the hierarchy of `scene`.
+    pub fn build(scene: &Scene, cfg: BuildConfig) -> Self {
+        let mut t = SphereTree {
+            cfg: Some(cfg),
+            ..Default::default()
+        };
+        t.part_of_mesh = vec![u32::MAX; scene.meshes().len()];
+        for (m, mesh) in scene.meshes().iter().enumerate() {
+            if mesh.indices.is_empty() {
+                continue;
+            }
+            t.part_of_mesh[m] = t.parts.len() as u32;
+            let first = scene.mesh_prims(m).start as u32;
+            let local = |f: usize| mesh.indices[f].map(|i| mesh.positions[i as usize]);
+            // Morton order of local centroids.
+            let mut b = Aabb::EMPTY;
+            for f in 0..mesh.indices.len() {
+                let [a, bb, c] = local(f);
+                b = b.grow((a + bb + c) / 3.0);
+            }
+            let ext = (b.max - b.min).max(Vec3::splat(f32::MIN_POSITIVE));
+            let mut keys: Vec<(u64, u32)> = (0..mesh.indices.len())
+                .map(|f| {
+                    let [a, bb, c] = local(f);
+                    let q = (((a + bb + c) / 3.0 - b.min) / ext * 1023.0)
+                        .clamp(Vec3::ZERO, Vec3::splat(1023.0));
+                    let k = morton10(q.x as u32)
+                        | (morton10(q.y as u32) << 1)
+                        | (morton10(q.z as u32) << 2);
+                    (k, f as u32)
+                })
+                .collect();
+            keys.sort_unstable();
+            let leaf0 = t.leaf_c.len() as u32;
+            for run in keys.chunks(cfg.leaf_size) {
+                let start = t.tris.len() as u32;
+                t.tris.extend(run.iter().map(|&(_, f)| first + f));
+                t.leaf_tris.push([start, t.tris.len() as u32]);
+                let (c, r) = leaf_sphere(run.iter().map(|&(_, f)| local(f as usize)), cfg.centre);
+                t.leaf_c.push(c);
+                t.leaf_r.push(r);
+            }
+            let leaves = leaf0..t.leaf_c.len() as u32;
+            let inner0 = t.inner_c.len() as u32;
+            if cfg.cluster > 0 {
+                let mut l = leaves.start;
+                while l < leaves.end {
+                    let e = (l + cfg.cluster as u32).min(leaves.end);
+                    let (c, r) =
+                        parent_sphere((l..e).map(|k| (t.leaf_c[k as usize], t.leaf_r[k as usize])));
+                    t.inner_c.push(c);
+                    t.inner_r.push(r);
+                    t.inner_leaves.push([l, e]);
+                    l = e;
+                }
+            }
+            let inner = inner0..t.inner_c.len() as u32;
+            t.parts.push(Part {
+                mesh: m as u32,
+                centre: Vec3::ZERO,
+                radius: 0.0,
+                inner,
+                leaves,
+                xf: mesh.transform,
+                inv: None,
+                sigma: 1.0,
+                sigma_inv: 1.0,
+                extent: 0.0,
+                world_centre: Vec3::ZERO,
+                world_radius: 0.0,
+            });
+            let p = t.parts.len() - 1;
+            t.refit_part(p);
+            t.place_part(p, mesh.transform);
+        }
+        t.place_root();
+        // Pushed one by one: give back the growth slack (bytes() reports capacities).
+        t.inner_c.shrink_to_fit();
+        t.inner_r.shrink_to_fit();
+        t.inner_leaves.shrink_to_fit();
+        t.leaf_c.shrink_to_fit();
+        t.leaf_r.shrink_to_fit();
+        t.leaf_tris.shrink_to_fit();
+        t.tris.shrink_to_fit();
+        t.parts.shrink_to_fit();
+        t
+    }
+
+    /// Updates for what changed in `scene` since the tree was built or last updated: rigid
+    /// motions rewrite parts' transforms, deformations re-centre leaves. `None` when the change
+    /// needs a rebuild (another scene, or none built).
+    pub fn update(&mut self, scene: &Scene, change: &Change) -> Option<Updated> {
+        let Change::Meshes { moved, deformed } = change else {
+            return None;
+        };
+        let mut u = Updated::default();
+        let part_of_mesh = std::mem::take(&mut self.part_of_mesh);
+        let part_of = |_: &[Part], m: usize| {
+            part_of_mesh
+                .get(m)
+                .copied()
+                .filter(|&p| p != u32::MAX)
+                .map(|p| p as usize)
+        };
+        for &m in deformed {
+            if let Some(p) = part_of(&self.parts, m) {
+                self.refit_leaves(scene, p);
+                u.refit_leaves += self.parts[p].leaves.len();
+                self.refit_part(p);
+                self.place_part(p, scene.meshes()[m].transform);
+                u.moved += 1;
+            }
+        }
+        for &m in moved {
+            if let Some(p) = part_of(&self.parts, m) {
+                self.place_part(p, scene.meshes()[m].transform);
+                u.moved += 1;
+            }
+        }
+        self.place_root();
+        self.part_of_mesh = part_of_mesh;
+        Some(u)
+    }
+
+    /// Re-centres the leaves of part `p` from its mesh's current local positions.
+    fn refit_leaves(&mut self, scene: &Scene, p: usize) {
+        let cfg = self.cfg.expect("built");
+        let mesh = &scene.meshes()[self.parts[p].mesh as usize];
+        let first = scene.mesh_prims(self.parts[p].mesh as usize).start as u32;
+        let local =
+            |id: u32| mesh.indices[(id - first) as usize].map(|i| mesh.positions[i as usize]);
+        for l in self.parts[p].leaves.clone() {
+            let [s, e] = self.leaf_tris[l as usize];
+            let ids = &self.tris[s as usize..e as usize];
+            let (c, r) = leaf_sphere(ids.iter().map(|&id| local(id)), cfg.centre);
+            self.leaf_c[l as usize] = c;
+            self.leaf_r[l as usize] = r;
+        }
+    }
+
+    /// Recomputes part `p`'s inner spheres and part sphere from its leaves (local frame).
+    fn refit_part(&mut self, p: usize) {
+        let part = &self.parts[p];
+        for k in part.inner.clone() {
+            let [l, e] = self.inner_leaves[k as usize];
+            let (c, r) =
+                parent_sphere((l..e).map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])));
+            self.inner_c[k as usize] = c;
+            self.inner_r[k as usize] = r;
+        }
+        let leaves = part.leaves.clone();
+        let (c, r) = if part.inner.is_empty() {
+            parent_sphere(
+                leaves
+                    .clone()
+                    .map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])),
+            )
+        } else {
+            parent_sphere(
+                part.inner
+                    .clone()
+                    .map(|k| (self.inner_c[k as usize], self.inner_r[k as usize])),
+            )
+        };
+        let extent = leaves
+            .map(|k| self.leaf_c[k as usize].abs().max_element() + self.leaf_r[k as usize])
+            .fold(c.abs().max_element() + r, f32::max);
+        let part = &mut self.parts[p];
+        (part.centre, part.radius, part.extent) = (c, r, extent);
+    }
+
+    /// Sets part `p`'s transform and world sphere (the rigid update: O(1)).
+    fn place_part(&mut self, p: usize, xf: Affine3A) {
+        let part = &mut self.parts[p];
+        let a = DMat3::from_cols(
+            xf.matrix3.x_axis.as_dvec3(),
+            xf.matrix3.y_axis.as_dvec3(),
+            xf.matrix3.z_axis.as_dvec3(),
+        );
+        part.xf = xf;
+        part.sigma = stretch(a) as f32;
+        let det = a.determinant();
+        part.inv = None;
+        part.sigma_inv = f32::INFINITY;
+        if det.is_finite() && det.abs() > 1e-30 {
+            let ai = a.inverse();
+            let si = stretch(ai);
+            if si.is_finite() && si * stretch(a) < 1e6 {
+                let t = -(ai * xf.translation.as_dvec3());
+                part.inv = Some(Affine3A::from_mat3_translation(
+                    glam::Mat3::from_cols(
+                        ai.x_axis.as_vec3(),
+                        ai.y_axis.as_vec3(),
+                        ai.z_axis.as_vec3(),
+                    ),
+                    t.as_vec3(),
+                ));
+                part.sigma_inv = si as f32;
+            }
+        }
+        part.world_centre = xf.transform_point3(part.centre);
+        let scale = part.sigma * part.extent + Vec3::from(xf.translation).abs().max_element();
+        part.world_radius = part.sigma * part.radius + 4.0 * SLACK * scale;
+    }
+
+    fn place_root(&mut self) {
+        let (c, r) = parent_sphere(self.parts.iter().map(|p| (p.world_centre, p.world_radius)));
+        (self.root_c, self.root_r) = if self.parts.is_empty() {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (c, r)
+        };
+    }
+
+    /// Spheres in all (scene, parts, inner, leaves).
+    pub fn spheres(&self) -> usize {
+        1 + self.parts.len() + self.inner_c.len() + self.leaf_c.len()
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.parts.capacity() * std::mem::size_of::<Part>()
+            + self.inner_c.capacity() * 12
+            + self.inner_r.capacity() * 4
+            + self.inner_leaves.capacity() * 8
+            + self.leaf_c.capacity() * 12
+            + self.leaf_r.capacity() * 4
+            + self.leaf_tris.capacity() * 8
+            + self.tris.capacity() * 4
+    }
+
+    /// Checks that every sphere bounds what it must, in world space, against the scene: each
+    /// leaf's world sphere holds its triangles' world boxes, parents hold children (for tests).
+    pub fn validate(&self, scene: &Scene) -> Result<(), String> {
+        let soup = scene.triangles();
+        let mut seen = vec![false; soup.len()];
+        for (pi, p) in self.parts.iter().enumerate() {
+            let scale = p.sigma * p.extent + Vec3::from(p.xf.translation).abs().max_element();
+            let e = 4.0 * SLACK * scale;
+            for l in p.leaves.clone() {
+                let c = p.xf.transform_point3(self.leaf_c[l as usize]);
+                let r = p.sigma * self.leaf_r[l as usize] + e;
+                let [s, en] = self.leaf_tris[l as usize];
+                for &id in &self.tris[s as usize..en as usize] {
+                    seen[id as usize] = true;
+                    let b = soup.bounds(id as usize);
+                    for k in 0..8 {
+                        let corner = Vec3::new(
+                            if k & 1 == 0 { b.min.x } else { b.max.x },
+                            if k & 2 == 0 { b.min.y } else { b.max.y },
+                            if k & 4 == 0 { b.min.z } else { b.max.z },
+                        );
+                        if (corner - c).length() > r {
+                            return Err(format!(
+                                "part {pi} leaf {l}: triangle {id}'s box pokes out"
+                            ));
+                        }
+                    }
+                }
+                if (c - p.world_centre).length() + r > p.world_radius + e {
+                    return Err(format!("part {pi}: leaf {l} outside the part sphere"));
+                }
+            }
+        }
+        if let Some(i) = seen.iter().position(|s| !s) {
+            if !scene.meshes().is_empty() {
+                return Err(format!("triangle {i} in no leaf"));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,515 @@
+//! `rtrps`: Ray Tracing based on Ray-Planes and bounding Spheres (Suzuki, Kaeriyama, Komatsu,
+//! Egawa, Ohba, Kobayashi 2010, "A Fast Ray-Tracing Using Bounding Spheres and Frustum Rays for
+//! Dynamic Scene Rendering", IEICE Trans. Inf. & Syst. E93-D(4)).
+//!
+//! | file | holds | paper |
+//! |---|---|---|
+//! | `mod.rs` | [`Config`], counters, [`Rtrps`], `impl Tracer` (prepare = build or update; the plan of a call) | §2.3, Alg. 1 |
+//! | `group.rs` | one N×N (or R×C) group: grid frame, row and column fans, the sphere walk, reproduced rays | §2.2–2.3, §3.1, Alg. 2 |
+//! | `random.rs` | random rays: one ray at a time over the same hierarchy | §4.2 (Table 5's baseline) |
+//! | [`crate::accel::spheres`] | the sphere hierarchy, rigid update and refit | §2.1, §4.1 |
+//! | [`crate::geom::sphere_plane`] | fan fit, 2D line/circle test, wedge cull, sign rule, ray/sphere | §3.1.1–3.1.3 |
+//!
+//! **Groups** (§2.2, §4, item 8 of issue #14): a batch laid out as `OriginGrids { side }` (area-
+//! light shadow samples, hemisphere bounce grids) is cut into its side×side groups; a `Pinhole`
+//! image into `packet`×`packet` tiles (rectangular at the image's right and bottom edges). A
+//! group whose rays do not share one origin bit for bit, or has a zero or non-finite direction,
+//! is traced as random rays; so is every batch of another layout (`Unknown` batches are first
+//! recognised with `RayBatch::detect_layout`). `grid_side > 0` cuts any batch into consecutive
+//! groups of that side (tests: it feeds the group path arbitrary directions).
+//!
+//! **The group walk** (Algorithm 2, with §3.1's techniques): the grid's frame is fitted to the
+//! rays (z: mean direction, x: along the rows), each row's rays define a plane containing the
+//! x-axis and each column's a plane containing the y-axis (the fans' shared lines, §3.1.1: a
+//! plane/sphere test is the 2D line/circle test `|n'·c''| <= bound` after one 18-flop transform
+//! of the centre per sphere, Eqs. 2–3). Real rays are not exactly on their plane: the fan's
+//! slack (largest sine between a ray and its plane) widens every bound (see
+//! `geom::sphere_plane`), so the planes may only cull, and a reproduced ray (a hit row × a hit
+//! column) is tested against the leaf's triangles with the shared `geom::intersect_triangle`. The
+//! walk is scene sphere → part spheres → inner spheres → leaves; a child tests only the planes
+//! its parent hit (a ray meeting a child's triangles passes through the parent).
+//! `culling` (§3.1.2): the outermost of the parent's hit planes are tested first and the exact
+//! circle/double-wedge test culls the sphere (Table 1's cases 5–10). `tree` (§3.1.3): the
+//! remaining planes are visited in implicit binary-tree order (centre first), a missed plane
+//! sending the search to one side only, where the sign rule holds (centre in front of both
+//! outer planes, or behind both); elsewhere plane by plane. Both are off in `mode=planes
+//! culling=false tree=false`, the paper's "All Plane".
+//!
+//! **Ours, where the paper is silent** (measured in BENCHMARKS.md § RTRPS):
+//! - the leaves (Morton runs of `leaf_size` triangles), inner spheres (`cluster` leaves), leaf
+//!   centre rule (`centre`), and the √3 radius that makes spheres bound what the box-gated
+//!   triangle test can report (see `accel::spheres`);
+//! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
+//!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
+//! - §3.2's common-origin and aligned ray-plane triangle forms are not implemented: the exactness
+//!   contract allows them only as culls before the shared test, which would add work, not
+//!   remove it. Every reproduced ray is tested with the shared test (Table 2's "Möller" row).
+//! - the sphere order is the hierarchy's (no near-to-far order; closest hits keep the smallest
+//!   `t` by [`closer`](crate::tracer::closer)).
+
+mod group;
+mod random;
+
+use crate::accel::spheres::{BuildConfig, Centre, SphereTree};
+use crate::error::{Error, Result};
+use crate::rays::{HitBatch, RayBatch, RayLayout};
+use crate::scene::{Change, Scene, Stamp};
+use crate::tracer::{
+    par_occlusion_chunks, par_ray_chunks, CounterDocs, CounterSet, RayCost, Stats, Tally, Tracer,
+};
+use crate::tracers::{OptionDoc, Preset};
+use serde::{Deserialize, Serialize};
+
+pub use group::GroupSpec;
+
+/// Options (`rtrps:key=value`).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// `planes` (groups as ray-planes, the rest as random rays) or `random` (every ray alone:
+    /// the paper's Table 5 baseline). Default `planes`.
+    pub mode: Mode,
+    /// Frustum culling by the outermost planes (§3.1.2). Default true.
+    pub culling: bool,
+    /// Binary-tree plane order (§3.1.3). Default true.
+    pub tree: bool,
+    /// Triangles per leaf sphere (1..=64). Default 2.
+    pub leaf_size: usize,
+    /// Leaves per inner sphere (0: leaves hang from the part, the paper's depth 3). Default 16.
+    pub cluster: usize,
+    /// Leaf centre: `box` (centre of its vertices' box) or `mean`. Default `box`.
+    pub centre: Centre,
+    /// Tile side for pinhole images (1..=64). Default 16.
+    pub packet: usize,
+    /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
+    /// its layout (tests). Default 0.
+    pub grid_side: usize,
+}
+
+/// [`Config::mode`].
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Ray-planes for groups, random rays for the rest.
+    #[default]
+    Planes,
+    /// Every ray alone.
+    Random,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Planes,
+            culling: true,
+            tree: true,
+            leaf_size: 2,
+            cluster: 16,
+            centre: Centre::Box,
+            packet: 16,
+            grid_side: 0,
+        }
+    }
+}
+
+impl Config {
+    fn check(&self) -> Result<()> {
+        let bad = |what: &str| Err(Error::Invalid(format!("tracer rtrps: {what}")));
+        if !(1..=64).contains(&self.leaf_size) {
+            return bad(&format!(
+                "leaf_size must be in 1..=64, got {}",
+                self.leaf_size
+            ));
+        }
+        if !(1..=64).contains(&self.packet) {
+            return bad(&format!("packet must be in 1..=64, got {}", self.packet));
+        }
+        if self.grid_side > 64 {
+            return bad(&format!(
+                "grid_side must be in 0..=64, got {}",
+                self.grid_side
+            ));
+        }
+        Ok(())
+    }
+
+    fn build_config(&self) -> BuildConfig {
+        BuildConfig {
+            leaf_size: self.leaf_size,
+            cluster: self.cluster,
+            centre: self.centre,
+        }
+    }
+}
+
+/// One line per option.
+pub const OPTION_DOCS: &[OptionDoc] = &[
+    OptionDoc {
+        key: "mode",
+        doc: "planes (groups as ray-planes, other rays alone) or random (every ray alone)",
+    },
+    OptionDoc {
+        key: "culling",
+        doc: "frustum culling by the outermost planes (§3.1.2)",
+    },
+    OptionDoc {
+        key: "tree",
+        doc: "binary-tree plane order (§3.1.3)",
+    },
+    OptionDoc {
+        key: "leaf_size",
+        doc: "triangles per leaf sphere (1..=64)",
+    },
+    OptionDoc {
+        key: "cluster",
+        doc: "leaves per inner sphere (0: none, the paper's depth 3)",
+    },
+    OptionDoc {
+        key: "centre",
+        doc: "leaf sphere centre: box (of its vertices) or mean",
+    },
+    OptionDoc {
+        key: "packet",
+        doc: "tile side for pinhole images (1..=64)",
+    },
+    OptionDoc {
+        key: "grid_side",
+        doc: "cut every batch into consecutive groups of grid_side² rays (0: by layout)",
+    },
+];
+
+/// Configurations the conformance suite checks besides the defaults.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "random rays",
+        opts: &[("mode", "random")],
+    },
+    Preset {
+        name: "all planes",
+        opts: &[("culling", "false"), ("tree", "false")],
+    },
+    Preset {
+        name: "culling only",
+        opts: &[("tree", "false")],
+    },
+    Preset {
+        name: "tree only, mean centres, no inner spheres",
+        opts: &[("culling", "false"), ("centre", "mean"), ("cluster", "0")],
+    },
+    Preset {
+        name: "any batch as 3x3 groups, leaves of one",
+        opts: &[("grid_side", "3"), ("leaf_size", "1")],
+    },
+    Preset {
+        name: "any batch as 8x8 groups",
+        opts: &[("grid_side", "8"), ("cluster", "4")],
+    },
+    Preset {
+        name: "packets of one ray",
+        opts: &[("grid_side", "1"), ("packet", "1")],
+    },
+    Preset {
+        name: "4x4 tiles, big leaves",
+        opts: &[("packet", "4"), ("leaf_size", "7")],
+    },
+];
+
+crate::counters! {
+    /// Work of `rtrps`, split as the paper's Fig. 11 does.
+    pub struct Counts {
+        /// Ray groups traced as ray-planes.
+        groups,
+        /// Rays in those groups.
+        group_rays,
+        /// Rays traced alone (random rays).
+        random_rays,
+        /// Plane/sphere tests of a fan's outermost planes (frustum culling, Fig. 11 "outside").
+        outline_tests,
+        /// Plane/sphere tests of the other planes (Fig. 11 "internal").
+        internal_tests,
+        /// Spheres a group tested (scene, part, inner and leaf spheres).
+        spheres_visited,
+        /// Spheres the wedge test culled before any inner plane was tested.
+        spheres_culled,
+        /// Rays reproduced from a hit row and a hit column at a leaf.
+        rays_reproduced,
+        /// Ray/sphere tests of random rays.
+        ray_sphere,
+        /// Ray/triangle tests (shared test).
+        tri_tests,
+    }
+}
+
+crate::counters! {
+    /// What a prepare built or updated.
+    pub struct Built {
+        /// Spheres in all (scene, parts, inner, leaves).
+        spheres,
+        /// Part spheres.
+        parts,
+        /// Inner spheres.
+        inner,
+        /// Leaf spheres.
+        leaves,
+        /// Triangles.
+        triangles,
+        /// 1 when the hierarchy was built from scratch.
+        rebuilt,
+        /// Parts whose transform was rewritten (rigid update).
+        parts_moved,
+        /// Leaves re-centred (deformed parts).
+        leaves_refit,
+    }
+}
+
+/// Counter docs: (built, work).
+pub const COUNTERS: (CounterDocs, CounterDocs) = (Built::DOCS, Counts::DOCS);
+
+/// The `rtrps` tracer.
+#[derive(Default)]
+pub struct Rtrps {
+    cfg: Config,
+    tree: SphereTree,
+    stamp: Stamp,
+}
+
+impl Rtrps {
+    /// A tracer with `cfg` and no scene yet.
+    pub fn new(cfg: Config) -> Result<Self> {
+        cfg.check()?;
+        Ok(Self {
+            cfg,
+            ..Self::default()
+        })
+    }
+
+    /// The current hierarchy.
+    pub fn spheres(&self) -> &SphereTree {
+        &self.tree
+    }
+
+    /// How a call cuts `rays`.
+    fn plan(&self, rays: &RayBatch) -> Plan {
+        let n = rays.len();
+        if self.cfg.mode == Mode::Random || n == 0 {
+            return Plan::Random;
+        }
+        if self.cfg.grid_side > 0 {
+            return Plan::Grids(self.cfg.grid_side);
+        }
+        let layout = match rays.layout {
+            RayLayout::Unknown => rays.detect_layout(None),
+            l => l,
+        };
+        match layout {
+            RayLayout::OriginGrids { side } if (1..=64).contains(&side) => {
+                Plan::Grids(side as usize)
+            }
+            RayLayout::Pinhole { width, height, .. } if width as usize * height as usize == n => {
+                Plan::Tiles(width as usize)
+            }
+            _ => Plan::Random,
+        }
+    }
+
+    fn chunk(&self, plan: Plan) -> usize {
+        match plan {
+            Plan::Random => 256,
+            Plan::Grids(s) => s * s * (1024 / (s * s)).max(1),
+            Plan::Tiles(w) => w * self.cfg.packet,
+        }
+    }
+
+    /// The groups of chunk `range` under `plan`, and (through `alone`) the rays left out.
+    fn groups(
+        &self,
+        plan: Plan,
+        range: std::ops::Range<usize>,
+        mut f: impl FnMut(GroupSpec),
+        mut alone: impl FnMut(usize),
+    ) {
+        match plan {
+            Plan::Random => range.for_each(alone),
+            Plan::Grids(s) => {
+                let mut b = range.start;
+                while b + s * s <= range.end {
+                    f(GroupSpec {
+                        base: b,
+                        stride: s,
+                        rows: s,
+                        cols: s,
+                    });
+                    b += s * s;
+                }
+                (b..range.end).for_each(&mut alone);
+            }
+            Plan::Tiles(w) => {
+                let rows = range.len() / w;
+                let p = self.cfg.packet;
+                for tx in (0..w).step_by(p) {
+                    f(GroupSpec {
+                        base: range.start + tx,
+                        stride: w,
+                        rows,
+                        cols: p.min(w - tx),
+                    });
+                }
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Plan {
+    Random,
+    Grids(usize),
+    Tiles(usize),
+}
+
+impl Tracer for Rtrps {
+    fn name(&self) -> &'static str {
+        "rtrps"
+    }
+
+    fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
+        let change = scene.changes_since(self.stamp);
+        let mut built = Built::default();
+        match change {
+            Change::None => {}
+            ref c => match self.tree.update(scene, c) {
+                Some(u) => {
+                    built.parts_moved = u.moved as u64;
+                    built.leaves_refit = u.refit_leaves as u64;
+                }
+                None => {
+                    self.tree = SphereTree::build(scene, self.cfg.build_config());
+                    built.rebuilt = 1;
+                }
+            },
+        }
+        self.stamp = scene.stamp();
+        let t = &self.tree;
+        built.spheres = t.spheres() as u64;
+        built.parts = t.parts.len() as u64;
+        built.inner = t.inner_c.len() as u64;
+        built.leaves = t.leaf_c.len() as u64;
+        built.triangles = t.tris.len() as u64;
+        Ok(Stats::prepared(&built, t.bytes()))
+    }
+
+    fn intersect(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        hits: &mut HitBatch,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let plan = self.plan(rays);
+        let soup = scene.triangles();
+        let tally: Tally<Counts> = par_ray_chunks(
+            rays,
+            hits,
+            cost,
+            self.chunk(plan),
+            |range, mut out, mut cost| {
+                let mut c = Counts::default();
+                let mut scratch = group::Scratch::new();
+                let start = range.start;
+                let mut lone = Vec::new();
+                self.groups(
+                    plan,
+                    range,
+                    |g| {
+                        group::trace(
+                            &self.tree,
+                            &self.cfg,
+                            soup,
+                            rays,
+                            g,
+                            start,
+                            &mut scratch,
+                            group::Out::Hits(&mut out),
+                            cost.as_mut(),
+                            &mut c,
+                        )
+                    },
+                    |i| lone.push(i),
+                );
+                for i in lone {
+                    random::closest(
+                        &self.tree,
+                        soup,
+                        rays,
+                        i,
+                        i - start,
+                        &mut out,
+                        cost.as_mut(),
+                        &mut c,
+                    );
+                }
+                Tally {
+                    counts: c,
+                    peak_bytes: scratch.bytes() as u64,
+                }
+            },
+        );
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn occluded(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Result<Stats> {
+        self.stamp.check(scene, self.name())?;
+        let plan = self.plan(rays);
+        let soup = scene.triangles();
+        let tally: Tally<Counts> = par_occlusion_chunks(
+            rays,
+            occluded,
+            cost,
+            self.chunk(plan),
+            |range, out, mut cost| {
+                let mut c = Counts::default();
+                let mut scratch = group::Scratch::new();
+                let start = range.start;
+                let mut lone = Vec::new();
+                self.groups(
+                    plan,
+                    range,
+                    |g| {
+                        group::trace(
+                            &self.tree,
+                            &self.cfg,
+                            soup,
+                            rays,
+                            g,
+                            start,
+                            &mut scratch,
+                            group::Out::Occluded(&mut *out),
+                            cost.as_mut(),
+                            &mut c,
+                        )
+                    },
+                    |i| lone.push(i),
+                );
+                for i in lone {
+                    out[i - start] =
+                        random::any(&self.tree, soup, rays, i, i - start, cost.as_mut(), &mut c);
+                }
+                Tally {
+                    counts: c,
+                    peak_bytes: scratch.bytes() as u64,
+                }
+            },
+        );
+        Ok(tally.into_stats(rays.len()))
+    }
+
+    fn bytes(&self) -> usize {
+        self.tree.bytes()
+    }
+}

@@ -1,0 +1,316 @@
+//! The `rtrps` tracer's own cases (issue #14), beyond the conformance suite: ray groups whose
+//! planes are tangent to spheres or pass through vertices and edges, grid origins inside
+//! spheres, packets of one ray, grids crossing the scene's bounds (hemispheres from surface
+//! points), rigid motion of one part of a multi-mesh scene and deformation every frame, the
+//! hierarchy's bounds after updates, and the counters (culling and the binary tree remove plane
+//! tests without changing answers). Every case compares with `naive` bit for bit, in the
+//! defaults and every preset.
+
+use glam::{Affine3A, Quat, Vec3};
+use raysift::rays::{generate, Camera, Ray, RayBatch, RayLayout};
+use raysift::scene::{procedural, Mesh, Scene};
+use raysift::testkit::{check_animation, check_tracer, Oracle};
+use raysift::tracer::Tracer;
+use raysift::tracers::{self, rtrps::Rtrps};
+
+fn check(scene: &Scene, rays: &RayBatch) {
+    let entry = tracers::entry("rtrps").unwrap();
+    let want = Oracle::new(scene, rays);
+    let mut scene = scene.clone();
+    check_tracer(entry, &[], &mut scene, rays, &want).unwrap();
+    for p in entry.presets {
+        check_tracer(entry, &tracers::preset_opts(p), &mut scene, rays, &want)
+            .unwrap_or_else(|e| panic!("preset {}: {e}", p.name));
+    }
+}
+
+/// Groups of `side²` rays from each origin through a grid of directions about `axis`
+/// (half-angle `spread` in tangent units), row-major, laid out as `OriginGrids`.
+fn grids(origins: &[Vec3], axis: Vec3, side: usize, spread: f32) -> RayBatch {
+    let (t, s) = axis.normalize().any_orthonormal_pair();
+    let mut rays = Vec::new();
+    for &o in origins {
+        for i in 0..side {
+            for j in 0..side {
+                let f = |k: usize| {
+                    if side == 1 {
+                        0.0
+                    } else {
+                        (k as f32 / (side - 1) as f32 * 2.0 - 1.0) * spread
+                    }
+                };
+                rays.push(Ray {
+                    origin: o,
+                    dir: axis.normalize() + t * f(j) + s * f(i),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
+            }
+        }
+    }
+    let mut b = RayBatch::from_rays(rays);
+    b.layout = RayLayout::OriginGrids { side: side as u32 };
+    b
+}
+
+fn scene_of(name: &str, tris: &[[Vec3; 3]]) -> Scene {
+    let positions = tris.iter().flatten().copied().collect();
+    let indices = (0..tris.len() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    Scene::from_meshes(name, vec![Mesh::new("m", positions, indices)]).unwrap()
+}
+
+/// Axis-aligned grid rays from the origin whose row and column planes are the integer planes
+/// through a lattice of small triangles' vertices and edges: planes pass exactly through
+/// vertices, along edges and tangent to the leaf spheres' contents.
+#[test]
+fn planes_through_vertices_edges_and_tangent() {
+    let mut tris = Vec::new();
+    for x in -3..=3 {
+        for y in -3..=3 {
+            let (x, y) = (x as f32, y as f32);
+            tris.push([
+                Vec3::new(x, y, 4.0),
+                Vec3::new(x + 1.0, y, 4.0),
+                Vec3::new(x, y + 1.0, 4.0),
+            ]);
+            tris.push([
+                Vec3::new(x, y, 6.0),
+                Vec3::new(x + 0.5, y + 0.5, 6.5),
+                Vec3::new(x, y + 1.0, 6.0),
+            ]);
+        }
+    }
+    let scene = scene_of("lattice", &tris);
+    let mut rays = Vec::new();
+    for side in [4usize, 7] {
+        for i in 0..side {
+            for j in 0..side {
+                // Directions through lattice points at z = 4: x, y integers.
+                let (x, y) = (j as f32 - (side / 2) as f32, i as f32 - (side / 2) as f32);
+                rays.push(Ray {
+                    origin: Vec3::ZERO,
+                    dir: Vec3::new(x, y, 4.0),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
+            }
+        }
+        let mut b = RayBatch::from_rays(std::mem::take(&mut rays));
+        b.layout = RayLayout::OriginGrids { side: side as u32 };
+        check(&scene, &b);
+    }
+}
+
+/// Grid origins inside spheres: at the centre of an icosphere, on its surface and at a vertex.
+#[test]
+fn grid_origin_inside_spheres() {
+    let scene = procedural::icosphere(500);
+    let v = scene.triangles().v0[7];
+    let origins = [
+        Vec3::ZERO,
+        v,
+        v * 0.999,
+        v * 1.001,
+        Vec3::new(0.3, -0.2, 0.1),
+    ];
+    for axis in [Vec3::X, Vec3::new(1.0, 2.0, -0.5)] {
+        check(&scene, &grids(&origins, axis, 8, 0.9));
+        check(&scene, &grids(&origins, axis, 5, 3.0));
+    }
+}
+
+/// Packets of one ray: `OriginGrids { side: 1 }` and a 1×N image.
+#[test]
+fn packets_of_one_ray() {
+    let scene = procedural::icosphere(200);
+    let origins: Vec<Vec3> = (0..40)
+        .map(|k| Vec3::new(3.0, k as f32 * 0.05 - 1.0, 0.2))
+        .collect();
+    check(&scene, &grids(&origins, -Vec3::X, 1, 0.0));
+    let cam = Camera::framing(&scene.bounds(), 40.0, 1.0).rays(1, 9);
+    check(&scene, &cam);
+}
+
+/// Hemisphere grids (a diffuse bounce) from surface points of the Cornell box, inside and out:
+/// the grids cross the scene's bounds; and area-light shadow grids (16×16).
+#[test]
+fn grids_crossing_the_scene_bounds() {
+    let scene = procedural::cornell();
+    let b = scene.bounds();
+    let cam = Camera::framing(&b, 40.0, 1.0).rays(16, 16);
+    let mut t = tracers::create("naive", &[]).unwrap();
+    t.prepare(&scene).unwrap();
+    let (hits, _) = t.intersect_timed(&scene, &cam).unwrap();
+    let eps = generate::surface_offset(&scene);
+    let mut rays = Vec::new();
+    let side = 6;
+    for i in (0..cam.len()).filter(|&i| hits.is_hit(i)).step_by(7) {
+        let (p, n) = generate::hit_frame(&scene, &cam, &hits, i);
+        for c in 0..side * side {
+            let (a, bb) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
+            rays.push(Ray {
+                origin: p + n * eps,
+                dir: generate::cosine_direction(n, a / side as f32, bb / side as f32),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
+        }
+    }
+    let mut batch = RayBatch::from_rays(rays);
+    batch.layout = RayLayout::OriginGrids { side: side as u32 };
+    check(&scene, &batch);
+    // Shadow grids towards a square light below the ceiling, as segments ending on it.
+    let top = b.max.y - 0.01 * (b.max.y - b.min.y);
+    let centre = Vec3::new((b.min.x + b.max.x) * 0.5, top, (b.min.z + b.max.z) * 0.5);
+    let mut rays = Vec::new();
+    for i in (0..cam.len()).filter(|&i| hits.is_hit(i)).step_by(11) {
+        let (p, n) = generate::hit_frame(&scene, &cam, &hits, i);
+        let o = p + n * eps;
+        for r in 0..16 {
+            for c in 0..16 {
+                let y = centre + Vec3::new(c as f32 - 7.5, 0.0, r as f32 - 7.5) * 0.02;
+                rays.push(Ray {
+                    origin: o,
+                    dir: y - o,
+                    tmin: 0.0,
+                    tmax: 1.0,
+                });
+            }
+        }
+    }
+    let mut batch = RayBatch::from_rays(rays);
+    batch.layout = RayLayout::OriginGrids { side: 16 };
+    check(&scene, &batch);
+}
+
+/// Three parts; one spins and rises every frame (rigid), another deforms; answers equal
+/// `naive` on the moved scene every frame, on grids, camera tiles and random rays.
+#[test]
+fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
+    let parts = [
+        procedural::icosphere(300),
+        procedural::soup(200, 4),
+        procedural::icosphere(80),
+    ];
+    let meshes: Vec<Mesh> = parts
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let mut m = p.meshes()[0].clone();
+            m.transform = Affine3A::from_translation(Vec3::new(k as f32 * 1.5 - 1.5, 0.0, 0.0));
+            m
+        })
+        .collect();
+    let scene = Scene::from_meshes("three parts", meshes).unwrap();
+    let cam = Camera::framing(&scene.bounds(), 50.0, 1.0).rays(40, 40);
+    let origins: Vec<Vec3> = (0..12)
+        .map(|k| Vec3::new(k as f32 * 0.3 - 1.8, 0.2, 3.0))
+        .collect();
+    let g = grids(&origins, -Vec3::Z, 8, 0.5);
+    let random = generate::random_in_box(&scene.bounds(), 600, 3);
+    let step = |s: &mut Scene, f: usize| {
+        let spin = Quat::from_rotation_y(0.4 * f as f32) * Quat::from_rotation_x(0.3);
+        s.set_transform(
+            1,
+            Affine3A::from_rotation_translation(spin, Vec3::new(0.0, 0.1 * f as f32, 0.0)),
+        )
+        .unwrap();
+        if f.is_multiple_of(2) {
+            let pos: Vec<Vec3> = s.meshes()[2]
+                .positions
+                .iter()
+                .map(|p| *p * (1.0 + 0.1 * f as f32))
+                .collect();
+            s.replace_positions(2, pos).unwrap();
+        }
+    };
+    for rays in [&cam, &g, &random] {
+        if let Err(e) = check_animation(&scene, 5, step, rays) {
+            panic!("{e}");
+        }
+    }
+    // The hierarchy bounds the moved triangles, and a rigid frame rewrites only one part.
+    let mut scene = scene;
+    let mut t = Rtrps::new(Default::default()).unwrap();
+    t.prepare(&scene).unwrap();
+    for f in 1..5 {
+        scene
+            .set_transform(
+                1,
+                Affine3A::from_rotation_translation(
+                    Quat::from_rotation_z(f as f32),
+                    Vec3::Y * f as f32,
+                ),
+            )
+            .unwrap();
+        let st = t.prepare(&scene).unwrap();
+        assert_eq!(
+            (
+                st.built.get("rebuilt"),
+                st.built.get("parts_moved"),
+                st.built.get("leaves_refit")
+            ),
+            (0, 1, 0)
+        );
+        t.spheres().validate(&scene).unwrap();
+    }
+    let pos: Vec<Vec3> = scene.meshes()[0]
+        .positions
+        .iter()
+        .map(|p| *p * 2.0 + Vec3::X)
+        .collect();
+    scene.replace_positions(0, pos).unwrap();
+    let st = t.prepare(&scene).unwrap();
+    assert_eq!(
+        st.built.get("leaves_refit"),
+        t.spheres().parts[0].leaves.len() as u64
+    );
+    t.spheres().validate(&scene).unwrap();
+}
+
+/// Culling and the binary tree remove plane tests (and never add reproduced rays); the group
+/// path serves the grids; random mode reproduces nothing.
+#[test]
+fn counters_split_plane_tests() {
+    let scene = procedural::icosphere(2000);
+    let origins: Vec<Vec3> = (0..20)
+        .map(|k| Vec3::new(3.0, k as f32 * 0.1 - 1.0, 0.5))
+        .collect();
+    let rays = grids(&origins, -Vec3::X, 16, 0.4);
+    let run = |opts: &[(&str, &str)]| {
+        let opts: Vec<(String, String)> = opts
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        let mut t = tracers::create("rtrps", &opts).unwrap();
+        t.prepare(&scene).unwrap();
+        let (h, st) = t.intersect_timed(&scene, &rays).unwrap();
+        (h, st.work)
+    };
+    let (h_all, all) = run(&[("culling", "false"), ("tree", "false")]);
+    let (h_cull, cull) = run(&[("tree", "false")]);
+    let (h_both, both) = run(&[]);
+    let (h_rand, rand) = run(&[("mode", "random")]);
+    assert_eq!(all.get("groups"), 20);
+    assert_eq!(all.get("outline_tests"), 0);
+    let total = |c: &raysift::tracer::Counters| c.get("outline_tests") + c.get("internal_tests");
+    assert!(total(&cull) < total(&all), "{cull:?} vs {all:?}");
+    assert!(total(&both) < total(&cull), "{both:?} vs {cull:?}");
+    assert!(both.get("rays_reproduced") <= all.get("rays_reproduced"));
+    assert_eq!(rand.get("rays_reproduced"), 0);
+    assert_eq!(rand.get("random_rays"), rays.len() as u64);
+    for h in [&h_cull, &h_both, &h_rand] {
+        assert_eq!(raysift::testkit::first_difference(&h_all, h), None);
+    }
+}
+
+/// Unknown options are refused.
+#[test]
+fn bad_options_are_errors() {
+    assert!(tracers::create("rtrps", &[("leafsize".into(), "2".into())]).is_err());
+    assert!(tracers::create("rtrps", &[("leaf_size".into(), "0".into())]).is_err());
+    assert!(tracers::create("rtrps", &[("packet".into(), "65".into())]).is_err());
+    assert!(tracers::create("rtrps", &[("centre".into(), "middle".into())]).is_err());
+}
