@@ -2,7 +2,8 @@
 //! per pixel of the camera or cones from a file, hits to a file, counts and times to stderr or
 //! `--json`.
 
-use crate::args::{camera_for, check_png, open_scene, ViewArgs, SCENE_HELP};
+use crate::args::{camera_for, open_scene, ViewArgs, SCENE_HELP};
+use crate::image_out::{format_of, Format};
 use crate::report::{median, print_json};
 use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
@@ -180,7 +181,9 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
         if a.cones.is_some() {
             bail!("--heatmap needs cones from the camera (--aperture or --rays-per-pixel), not --cones");
         }
-        check_png(p)?;
+        if format_of(p)? != Format::Png {
+            bail!("{}: a heatmap is a picture, not radiance: name it .png", p.display());
+        }
     }
     let structure = match a.structure {
         StructureArg::Bvh => Structure::Bvh,
