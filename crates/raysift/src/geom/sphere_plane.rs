@@ -254,56 +254,17 @@ mod tests {
     #[test]
     fn ray_sphere_is_conservative_on_tangent_and_behind() {
         use glam::Vec3;
-        let (o, d) = (Vec3::ZERO, Vec3::X);
-        assert!(ray_sphere(
-            o,
-            d,
-            1.0,
-            1.0,
-            Vec3::new(5.0, 1.0, 0.0),
-            1.0,
-            0.0,
-            f32::INFINITY
-        ));
-        assert!(!ray_sphere(
-            o,
-            d,
-            1.0,
-            1.0,
-            Vec3::new(5.0, 1.01, 0.0),
-            1.0,
-            0.0,
-            f32::INFINITY
-        ));
-        assert!(!ray_sphere(
-            o,
-            d,
-            1.0,
-            1.0,
-            Vec3::new(-5.0, 0.0, 0.0),
-            1.0,
-            0.0,
-            f32::INFINITY
-        ));
-        assert!(ray_sphere(
-            o,
-            d,
-            1.0,
-            1.0,
-            Vec3::new(-0.5, 0.0, 0.0),
-            1.0,
-            0.0,
-            f32::INFINITY
-        ));
-        assert!(!ray_sphere(
-            o,
-            d,
-            1.0,
-            1.0,
-            Vec3::new(5.0, 0.0, 0.0),
-            1.0,
-            0.0,
-            3.0
-        ));
+        // A unit ray along +x from the origin against unit spheres: (centre, tmax, expected).
+        let cases = [
+            (Vec3::new(5.0, 1.0, 0.0), f32::INFINITY, true), // tangent: kept
+            (Vec3::new(5.0, 1.01, 0.0), f32::INFINITY, false), // just off
+            (Vec3::new(-5.0, 0.0, 0.0), f32::INFINITY, false), // behind the origin
+            (Vec3::new(-0.5, 0.0, 0.0), f32::INFINITY, true), // the origin inside
+            (Vec3::new(5.0, 0.0, 0.0), 3.0, false),          // beyond tmax
+        ];
+        for (c, tmax, want) in cases {
+            let got = ray_sphere(Vec3::ZERO, Vec3::X, 1.0, 1.0, c, 1.0, 0.0, tmax);
+            assert_eq!(got, want, "centre {c} tmax {tmax}");
+        }
     }
 }

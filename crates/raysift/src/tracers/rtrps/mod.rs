@@ -53,9 +53,10 @@ mod random;
 use crate::accel::spheres::{BuildConfig, Centre, SphereTree};
 use crate::error::{Error, Result};
 use crate::rays::{HitBatch, RayBatch, RayLayout};
-use crate::scene::{Change, Scene, Stamp};
+use crate::scene::{Change, Scene, Stamp, TriangleSoup};
 use crate::tracer::{
-    par_occlusion_chunks, par_ray_chunks, CounterDocs, CounterSet, RayCost, Stats, Tally, Tracer,
+    par_occlusion_chunks, par_ray_chunks, CostMut, CounterDocs, CounterSet, RayCost, Stats, Tally,
+    Tracer,
 };
 use crate::tracers::{OptionDoc, Preset};
 use serde::{Deserialize, Serialize};
@@ -321,6 +322,61 @@ impl Rtrps {
     }
 
     /// The groups of chunk `range` under `plan`, and (through `alone`) the rays left out.
+    /// One parallel chunk of either query: its groups through `group::trace`, then the rays
+    /// left alone (no group, or a partial one at the chunk's end) one at a time.
+    fn run_chunk(
+        &self,
+        plan: Plan,
+        soup: &TriangleSoup,
+        rays: &RayBatch,
+        range: std::ops::Range<usize>,
+        mut out: group::Out<'_, '_>,
+        mut cost: Option<CostMut<'_>>,
+    ) -> Tally<Counts> {
+        let mut c = Counts::default();
+        let mut scratch = group::Scratch::new();
+        let start = range.start;
+        let mut lone = Vec::new();
+        self.groups(
+            plan,
+            range,
+            |g| {
+                let out = match &mut out {
+                    group::Out::Hits(h) => group::Out::Hits(&mut **h),
+                    group::Out::Occluded(o) => group::Out::Occluded(&mut **o),
+                };
+                group::trace(
+                    &self.tree,
+                    &self.cfg,
+                    soup,
+                    rays,
+                    g,
+                    start,
+                    &mut scratch,
+                    out,
+                    cost.as_mut(),
+                    &mut c,
+                )
+            },
+            |i| lone.push(i),
+        );
+        for i in lone {
+            let (tree, k) = (&self.tree, i - start);
+            match &mut out {
+                group::Out::Hits(h) => {
+                    random::closest(tree, soup, rays, i, k, h, cost.as_mut(), &mut c)
+                }
+                group::Out::Occluded(o) => {
+                    o[k] = random::any(tree, soup, rays, i, k, cost.as_mut(), &mut c)
+                }
+            }
+        }
+        Tally {
+            counts: c,
+            peak_bytes: scratch.bytes() as u64,
+        }
+    }
+
     fn groups(
         &self,
         plan: Plan,
@@ -412,46 +468,8 @@ impl Tracer for Rtrps {
             hits,
             cost,
             self.chunk(plan),
-            |range, mut out, mut cost| {
-                let mut c = Counts::default();
-                let mut scratch = group::Scratch::new();
-                let start = range.start;
-                let mut lone = Vec::new();
-                self.groups(
-                    plan,
-                    range,
-                    |g| {
-                        group::trace(
-                            &self.tree,
-                            &self.cfg,
-                            soup,
-                            rays,
-                            g,
-                            start,
-                            &mut scratch,
-                            group::Out::Hits(&mut out),
-                            cost.as_mut(),
-                            &mut c,
-                        )
-                    },
-                    |i| lone.push(i),
-                );
-                for i in lone {
-                    random::closest(
-                        &self.tree,
-                        soup,
-                        rays,
-                        i,
-                        i - start,
-                        &mut out,
-                        cost.as_mut(),
-                        &mut c,
-                    );
-                }
-                Tally {
-                    counts: c,
-                    peak_bytes: scratch.bytes() as u64,
-                }
+            |range, mut out, cost| {
+                self.run_chunk(plan, soup, rays, range, group::Out::Hits(&mut out), cost)
             },
         );
         Ok(tally.into_stats(rays.len()))
@@ -472,38 +490,8 @@ impl Tracer for Rtrps {
             occluded,
             cost,
             self.chunk(plan),
-            |range, out, mut cost| {
-                let mut c = Counts::default();
-                let mut scratch = group::Scratch::new();
-                let start = range.start;
-                let mut lone = Vec::new();
-                self.groups(
-                    plan,
-                    range,
-                    |g| {
-                        group::trace(
-                            &self.tree,
-                            &self.cfg,
-                            soup,
-                            rays,
-                            g,
-                            start,
-                            &mut scratch,
-                            group::Out::Occluded(&mut *out),
-                            cost.as_mut(),
-                            &mut c,
-                        )
-                    },
-                    |i| lone.push(i),
-                );
-                for i in lone {
-                    out[i - start] =
-                        random::any(&self.tree, soup, rays, i, i - start, cost.as_mut(), &mut c);
-                }
-                Tally {
-                    counts: c,
-                    peak_bytes: scratch.bytes() as u64,
-                }
+            |range, out, cost| {
+                self.run_chunk(plan, soup, rays, range, group::Out::Occluded(out), cost)
             },
         );
         Ok(tally.into_stats(rays.len()))
