@@ -197,7 +197,9 @@ def main():
 
     # Difference image: raysift | Mitsuba | |difference| x 4, tone-mapped alike, for a person.
     def tm(x):
-        return (np.clip(x, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+        x = np.clip(x, 0, 1)  # the sRGB transfer function, as raysift's PNGs
+        x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+        return (x * 255 + 0.5).astype(np.uint8)
 
     diff = np.abs(ours - ref) * 4
     strip = np.concatenate([tm(ours), tm(ref), tm(diff)], axis=1)

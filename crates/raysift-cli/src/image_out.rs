@@ -1,4 +1,4 @@
-//! Writing a render: PNG (8-bit, clamped, gamma 1/2.2) or OpenEXR (linear radiance, 32-bit float
+//! Writing a render: PNG (8-bit sRGB, clamped) or OpenEXR (linear radiance, 32-bit float
 //! RGB, through the `exr` crate). The format comes from the extension, checked before any work;
 //! both are written to a temporary file beside the target and renamed, so a failed write
 //! leaves nothing behind.
@@ -10,7 +10,7 @@ use std::path::Path;
 /// An image format raysift writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
-    /// 8-bit sRGB-ish PNG (clamped to [0, 1], gamma 1/2.2).
+    /// 8-bit sRGB PNG (clamped to [0, 1], the sRGB transfer function).
     Png,
     /// Linear radiance, float RGB.
     Exr,

@@ -69,7 +69,7 @@ pub struct RenderArgs {
     /// tests, in false colour with a colour bar (the scale is printed too).
     #[arg(long, value_name = "COUNT", value_parser = heatmap_parser())]
     pub(crate) heatmap: Option<CostKind>,
-    /// Output image: .png (clamped, gamma 1/2.2) or .exr (linear radiance, float RGB; path,
+    /// Output image: .png (8-bit sRGB, clamped) or .exr (linear radiance, float RGB; path,
     /// distribution and instant radiosity only).
     #[arg(long, default_value = "raysift.png")]
     pub(crate) out: PathBuf,

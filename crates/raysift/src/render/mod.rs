@@ -167,16 +167,55 @@ pub fn raycast(
     Ok((to_image(&colour, width, height), stats))
 }
 
-/// Linear radiance to an 8-bit image: clamped to [0, 1], gamma 1/2.2.
+/// Linear radiance to an 8-bit sRGB image: clamped to [0, 1], then the sRGB transfer function
+/// (IEC 61966-2-1: linear below 0.0031308, a 2.4 power above), rounded to nearest.
 pub fn to_image(colour: &[Vec3], width: u32, height: u32) -> Image {
     let rgb = colour
         .iter()
-        .flat_map(|c| {
-            c.to_array()
-                .map(|x| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8)
-        })
+        .flat_map(|c| c.to_array().map(|x| (srgb_encode(x) * 255.0 + 0.5) as u8))
         .collect();
     Image { width, height, rgb }
+}
+
+/// The sRGB transfer function of a linear value, clamped to [0, 1] (NaN gives 0).
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tone_tests {
+    use super::srgb_encode;
+
+    #[test]
+    fn srgb_transfer_function() {
+        // The standard's reference points: the ends, the linear segment, the knee, and
+        // mid-grey (0.214 linear is 50% sRGB up to the standard's own rounding).
+        assert_eq!(srgb_encode(0.0), 0.0);
+        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
+        assert_eq!(srgb_encode(-1.0), 0.0);
+        assert_eq!(srgb_encode(7.0), srgb_encode(1.0));
+        let white = super::to_image(&[glam::Vec3::ONE], 1, 1);
+        assert_eq!(white.rgb, vec![255; 3]);
+        assert_eq!(srgb_encode(f32::NAN), 0.0);
+        assert!((srgb_encode(0.001) - 0.012_92).abs() < 1e-7);
+        let knee = 0.003_130_8_f32;
+        assert!(
+            (srgb_encode(knee) - srgb_encode(knee * 1.000_01)).abs() < 1e-5,
+            "continuous"
+        );
+        assert!((srgb_encode(0.214_041_1) - 0.5).abs() < 1e-4);
+        let mut last = 0.0;
+        for k in 0..=1000 {
+            let v = srgb_encode(k as f32 / 1000.0);
+            assert!(v >= last, "monotone at {k}");
+            last = v;
+        }
+    }
 }
 
 fn diffuse(
