@@ -11,6 +11,7 @@ pub mod cone_triangle;
 pub mod conebox;
 pub mod lanes;
 pub mod projection;
+pub mod shaft;
 pub mod shapes;
 pub mod slab;
 pub mod sphere_plane;

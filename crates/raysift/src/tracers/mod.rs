@@ -19,6 +19,7 @@ pub mod dacrt5d;
 pub mod kdtree;
 pub mod naive;
 pub mod rtrps;
+pub mod rtt;
 
 use crate::error::{Error, Result};
 use crate::tracer::{CounterDocs, Tracer};
@@ -199,6 +200,17 @@ pub static REGISTRY: &[Entry] = &[
         presets: rtrps::PRESETS,
         built_counters: rtrps::COUNTERS.0,
         work_counters: rtrps::COUNTERS.1,
+    },
+    Entry {
+        name: "rtt",
+        paper: "relevant-triangle tracing with shafts (4×4 tiles over an SAH kd-tree; ../shared/papers/relevant-triangles-tracing-shafts.md)",
+        summary: "SAH kd-tree; each 4×4 tile's corner rays cap a shaft whose relevant-triangle list answers the other rays, proven ray by ray",
+        create: |opts| Ok(Box::new(rtt::Rtt::new(config_from_opts("rtt", opts)?)?)),
+        defaults: defaults_of::<rtt::Config>,
+        option_docs: rtt::OPTION_DOCS,
+        presets: rtt::PRESETS,
+        built_counters: rtt::COUNTERS.0,
+        work_counters: rtt::COUNTERS.1,
     },
 ];
 

@@ -18,7 +18,7 @@
 mod traverse;
 
 pub use crate::accel::kdtree::{BuildConfig, KdTree};
-pub use traverse::{Counters, StackEntry};
+pub use traverse::{walk, Best, Counters, StackEntry};
 
 use crate::error::Result;
 use crate::rays::{HitBatch, RayBatch};

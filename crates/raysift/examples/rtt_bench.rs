@@ -1,0 +1,183 @@
+//! The relevant-triangle shafts paper's Table 1 and antialiasing sweep: `rtt` against the
+//! single-ray `kdtree` on the same rays, alternating, best of R.
+//!
+//! ```text
+//! cargo run --release -p raysift --example rtt_bench -- SCENE_SPEC \
+//!     [--width W] [--height H] [--aa 1,2,4] [--repeat R] [--threads N] [key=value ...]
+//! ```
+//!
+//! For each a in `--aa`: W×H pixels of a×a stratified jittered samples from the default framing
+//! (45° fov), closest hit; for a = 1 also shadow rays from the hits to a point light (above the
+//! scene's centre, inside its box), any hit. Options `key=value` go to `rtt`. Prints per measure
+//! both times, their ratio, and `rtt`'s Table 1 counters: rays traced through the tree (corner,
+//! fallback, lone), share answered from lists, mean list length, triangle tests per ray.
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use raysift::rays::{generate, Camera, Ray, RayLayout};
+use raysift::{scene::procedural, tracers, RayBatch, Scene, Stats, Tracer};
+use std::time::Instant;
+
+type Res<T> = Result<T, Box<dyn std::error::Error + Send + Sync>>;
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("rtt_bench: {e}");
+        std::process::exit(2);
+    }
+}
+
+fn run() -> Res<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (mut pos, mut opts) = (Vec::new(), Vec::new());
+    let (mut w, mut h, mut repeat, mut threads) = (640u32, 480u32, 3usize, 0usize);
+    let mut aa = vec![1u32];
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut val = || it.next().ok_or(format!("{a} needs a value"));
+        match a.as_str() {
+            "--width" => w = val()?.parse()?,
+            "--height" => h = val()?.parse()?,
+            "--repeat" => repeat = val()?.parse::<usize>()?.max(1),
+            "--threads" => threads = val()?.parse()?,
+            "--aa" => {
+                aa = val()?
+                    .split(',')
+                    .map(|s| s.parse())
+                    .collect::<Result<_, _>>()?
+            }
+            s if s.contains('=') => opts.push(s.to_string()),
+            s => pos.push(s.to_string()),
+        }
+    }
+    let [spec] = &pos[..] else {
+        return Err("usage: rtt_bench SCENE_SPEC [--width W] [--height H] [--aa 1,2] [--repeat R] [--threads N] [key=value ...]".into());
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    pool.install(|| -> Res<()> {
+        let scene = procedural::open(spec)?;
+        let mut kd = tracers::create("kdtree", &[])?;
+        let mut rtt = tracers::create("rtt", &tracers::parse_opts(&opts)?)?;
+        let t0 = Instant::now();
+        kd.prepare(&scene)?;
+        let build = t0.elapsed().as_secs_f64() * 1e3;
+        rtt.prepare(&scene)?;
+        println!(
+            "scene {} ({} triangles), rtt {opts:?}, {} threads, kd-tree built in {build:.0} ms",
+            scene.name,
+            scene.len(),
+            rayon::current_num_threads()
+        );
+        let cam = Camera::framing(&scene.bounds(), 45.0, w as f32 / h as f32);
+        for &a in &aa {
+            let rays = if a == 1 {
+                cam.rays(w, h)
+            } else {
+                pixel_samples(&cam, w, h, a)
+            };
+            let label = format!("primary {w}x{h} aa {a}x{a}");
+            measure(&label, &scene, &*kd, &*rtt, &rays, repeat, false)?;
+            if a == 1 {
+                let (hits, _) = kd.intersect_timed(&scene, &rays)?;
+                let b = scene.bounds();
+                let light = b.min.lerp(b.max, 0.5) + Vec3::new(0.1, 0.45, 0.2) * (b.max - b.min);
+                let (shadow, _) = generate::shadow_rays(&scene, &rays, &hits, light);
+                measure(
+                    "shadow (point light)",
+                    &scene,
+                    &*kd,
+                    &*rtt,
+                    &shadow,
+                    repeat,
+                    true,
+                )?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// `a×a` stratified jittered samples per pixel, pixel-major (the distribution renderer's).
+fn pixel_samples(cam: &Camera, w: u32, h: u32, a: u32) -> RayBatch {
+    let (right, up, fwd) = cam.basis();
+    let tan = (cam.fov_deg.to_radians() * 0.5).tan();
+    let (wf, hf) = (w as f32, h as f32);
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(a as u64);
+    let mut b = RayBatch::with_capacity((w * h * a * a) as usize);
+    for j in 0..h {
+        for i in 0..w {
+            for s in 0..a * a {
+                let x = i as f32 + ((s % a) as f32 + rng.gen::<f32>()) / a as f32;
+                let y = j as f32 + ((s / a) as f32 + rng.gen::<f32>()) / a as f32;
+                let px = (2.0 * x / wf - 1.0) * tan * wf / hf;
+                let py = (1.0 - 2.0 * y / hf) * tan;
+                b.push(Ray {
+                    origin: cam.eye,
+                    dir: (px * right + py * up + fwd).normalize(),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
+            }
+        }
+    }
+    b.layout = RayLayout::PixelSamples {
+        eye: cam.eye,
+        width: w,
+        height: h,
+        samples: a * a,
+    };
+    b
+}
+
+/// Times `kd` and `rtt` alternating, best of `repeat`, and prints the line.
+fn measure(
+    label: &str,
+    scene: &Scene,
+    kd: &dyn Tracer,
+    rtt: &dyn Tracer,
+    rays: &RayBatch,
+    repeat: usize,
+    any: bool,
+) -> Res<()> {
+    let run = |t: &dyn Tracer| -> raysift::Result<Stats> {
+        Ok(if any {
+            t.occluded_timed(scene, rays)?.1
+        } else {
+            t.intersect_timed(scene, rays)?.1
+        })
+    };
+    let (mut best_kd, mut best_rtt) = (f64::INFINITY, f64::INFINITY);
+    let (mut skd, mut srtt) = (Stats::default(), Stats::default());
+    for _ in 0..repeat {
+        let s = run(kd)?;
+        if s.trace_ms < best_kd {
+            (best_kd, skd) = (s.trace_ms, s);
+        }
+        let s = run(rtt)?;
+        if s.trace_ms < best_rtt {
+            (best_rtt, srtt) = (s.trace_ms, s);
+        }
+    }
+    let n = rays.len().max(1) as f64;
+    let c = |k: &str| srtt.work.get(k);
+    let traced = c("corner_rays") + c("fallback_rays") + c("lone_rays");
+    println!(
+        "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2})",
+        rays.len(),
+        n / best_kd / 1e3,
+        skd.work.get("ray_tri") as f64 / n,
+        n / best_rtt / 1e3,
+        best_kd / best_rtt,
+        100.0 * traced as f64 / n,
+        c("corner_rays"),
+        c("fallback_rays"),
+        100.0 * c("list_rays") as f64 / n,
+        c("list_len") as f64 / c("tiles_listed").max(1) as f64,
+        100.0 * c("tiles_listed") as f64 / c("tiles").max(1) as f64,
+        (c("ray_tri") + c("list_tests")) as f64 / n,
+        c("list_tests") as f64 / n,
+    );
+    Ok(())
+}

@@ -1,0 +1,364 @@
+//! One tile: its rays, its shaft, its relevant-triangle list, and the proof that decides, ray by
+//! ray, whether the list's answer is the tree's (§3 of the paper; the rule is in `mod.rs`).
+
+use super::{Config, Counters};
+use crate::accel::kdtree::{KdTree, MAX_DEPTH};
+use crate::geom::shaft::Shaft;
+use crate::geom::{intersect_triangle, Aabb};
+use crate::rays::{RayBatch, MISS};
+use crate::scene::TriangleSoup;
+use crate::tracer::{closer, CostMut};
+use crate::tracers::kdtree::{walk, Best, Counters as KdCounters, StackEntry};
+use glam::DVec3;
+
+/// Rows of pixels sharing one origin, as laid out in the batch: ray `base + (j·width + i)·samples
+/// + k` is sample `k` of pixel `(i, j)`, `j < rows`.
+#[derive(Clone, Copy, Debug)]
+pub struct Band {
+    /// Index of the band's first ray.
+    pub base: usize,
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub rows: usize,
+    /// Rays per pixel (`a²`: the corner rays are the outermost samples of the corner pixels).
+    pub samples: usize,
+}
+
+/// Per-chunk scratch (allocated once per chunk, never per ray or node).
+pub struct Scratch {
+    /// The tile's ray indices.
+    idx: Vec<usize>,
+    /// Which of them are answered.
+    done: Vec<bool>,
+    /// The relevant-triangle list.
+    list: Vec<u32>,
+    /// The shaft walk's stack.
+    cells: Vec<(u32, Aabb)>,
+    /// The single-ray walk's stack.
+    stack: [StackEntry; MAX_DEPTH],
+}
+
+impl Scratch {
+    /// Scratch for tiles of up to `rays` rays and lists of up to `max_list` triangles.
+    pub fn new(rays: usize, max_list: usize) -> Self {
+        Self {
+            idx: Vec::with_capacity(rays),
+            done: Vec::with_capacity(rays),
+            list: Vec::with_capacity(2 * max_list + LIST_OVERRUN),
+            cells: Vec::with_capacity(MAX_DEPTH + 2),
+            stack: [StackEntry::default(); MAX_DEPTH],
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.idx.capacity() * 8
+            + self.done.capacity()
+            + self.list.capacity() * 4
+            + self.cells.capacity() * std::mem::size_of::<(u32, Aabb)>()
+            + std::mem::size_of::<[StackEntry; MAX_DEPTH]>()
+    }
+}
+
+/// Duplicate references a list may hold before it is deduplicated and checked.
+const LIST_OVERRUN: usize = 16;
+
+/// What a tile needs to read.
+pub struct Ctx<'a> {
+    /// The tree.
+    pub tree: &'a KdTree,
+    /// Its triangles.
+    pub soup: &'a TriangleSoup,
+    /// The batch.
+    pub rays: &'a RayBatch,
+    /// Options.
+    pub cfg: &'a Config,
+}
+
+impl Ctx<'_> {
+    /// Ray `i` through the tree alone; its cost charged to `cost` at local index `i - start`.
+    pub fn walk<const ANY: bool>(
+        &self,
+        i: usize,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+    ) -> Best {
+        let mut k = KdCounters::default();
+        let best = walk::<ANY>(self.tree, self.soup, self.rays, i, &mut s.stack, &mut k);
+        if let Some(cost) = cost {
+            let nodes = k.nodes + k.leaves;
+            cost.add(i - start, nodes, k.ray_box + k.nodes + k.ray_tri, k.ray_tri);
+        }
+        c.add_walk(&k);
+        best
+    }
+
+    /// Ray `i` against the list.
+    #[inline]
+    fn test_list<const ANY: bool>(&self, i: usize, list: &[u32]) -> Best {
+        let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+        let (v0, v1, v2) = (&self.soup.v0, &self.soup.v1, &self.soup.v2);
+        let mut best: Best = (self.rays.tmax[i], MISS, 0.0, 0.0);
+        for &p in list {
+            let k = p as usize;
+            if let Some(h) = intersect_triangle(o, d, v0[k], v1[k], v2[k], tmin, best.0) {
+                if closer(h.t, p, best.0, best.1) {
+                    best = (h.t, p, h.u, h.v);
+                    if ANY {
+                        break;
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Walks the tree with the shaft, collecting into `s.list` (sorted, deduplicated) every
+    /// triangle whose box the shaft may meet; false when the list would exceed `max_list`.
+    fn collect(&self, shaft: &Shaft, s: &mut Scratch, c: &mut Counters) -> bool {
+        let (tree, soup) = (self.tree, self.soup);
+        let limit = self.cfg.max_list;
+        s.list.clear();
+        s.cells.clear();
+        if tree.nodes.is_empty() {
+            return true;
+        }
+        s.cells.push((0, tree.bounds));
+        while let Some((node, cell)) = s.cells.pop() {
+            c.shaft_boxes += 1;
+            if shaft.box_outside(cell.min, cell.max) {
+                continue;
+            }
+            c.shaft_nodes += 1;
+            let n = tree.nodes[node as usize];
+            if n.is_leaf() {
+                for &p in tree.leaf_ids(n) {
+                    let k = p as usize;
+                    let (a, b, d) = (soup.v0[k], soup.v1[k], soup.v2[k]);
+                    c.shaft_boxes += 1;
+                    if !shaft.box_outside(a.min(b).min(d), a.max(b).max(d)) {
+                        if s.list.len() == 2 * limit + LIST_OVERRUN {
+                            return false;
+                        }
+                        s.list.push(p);
+                    }
+                }
+            } else {
+                let (a, split) = (n.axis(), n.split());
+                let (mut below, mut above) = (cell, cell);
+                below.max[a] = split;
+                above.min[a] = split;
+                s.cells.push((n.above(), above));
+                s.cells.push((node + 1, below));
+            }
+        }
+        s.list.sort_unstable();
+        s.list.dedup();
+        s.list.len() <= limit
+    }
+
+    /// Traces the `tw × th` pixels at `(i0, j0)` of `band`, calling `emit(i, hit)` for every ray
+    /// `i` (misses included); `start` is the chunk's first ray (the cost window's origin).
+    #[allow(clippy::too_many_arguments)]
+    pub fn tile<const ANY: bool>(
+        &self,
+        band: Band,
+        (i0, j0, tw, th): (usize, usize, usize, usize),
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        let ns = band.samples;
+        let a = (ns as f64).sqrt().round() as usize;
+        let a = if a * a == ns { a } else { 1 };
+        let at = |i: usize, j: usize, k: usize| band.base + (j * band.width + i) * ns + k;
+        s.idx.clear();
+        for j in j0..j0 + th {
+            for i in i0..i0 + tw {
+                s.idx.extend((0..ns).map(|k| at(i, j, k)));
+            }
+        }
+        let (r, b) = (i0 + tw - 1, j0 + th - 1);
+        let corners = [
+            at(i0, j0, 0),
+            at(r, j0, a - 1),
+            at(r, b, ns - 1),
+            at(i0, b, ns - a),
+        ];
+        self.shaft_tile::<ANY>(Some(corners), start, s, c, cost, emit);
+    }
+
+    /// Traces rays `group` (finite segments, any origins: shadow rays to a point light) as one
+    /// tile whose shaft bounds the segments themselves.
+    #[allow(clippy::too_many_arguments)]
+    pub fn segments<const ANY: bool>(
+        &self,
+        group: std::ops::Range<usize>,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        s.idx.clear();
+        s.idx.extend(group);
+        self.shaft_tile::<ANY>(None, start, s, c, cost, emit);
+    }
+
+    /// The shaft of rays `s.idx` from one origin (apex there), uncapped; `None` when they do not
+    /// share the origin bit for bit, some `tmin` is negative or the directions do not fit.
+    fn origin_shaft(&self, s: &Scratch) -> Option<Shaft> {
+        let rays = self.rays;
+        let o = rays.origin(s.idx[0]);
+        // One origin bit for bit, and t >= 0 (the shaft bounds rays ahead of the apex only).
+        let same = |i: usize| {
+            rays.ox[i] == o.x && rays.oy[i] == o.y && rays.oz[i] == o.z && rays.tmin[i] >= 0.0
+        };
+        if !s.idx.iter().all(|&i| same(i)) {
+            return None;
+        }
+        let dirs = s.idx.iter().map(|&i| rays.dir(i).as_dvec3());
+        Shaft::fit(o.as_dvec3(), dirs)
+    }
+
+    /// The shaft of segments `s.idx`, capped at their farthest end; `None` when a segment is
+    /// infinite or they do not fit. The apex is pulled back behind the segments' far ends (by
+    /// 1% of the group's extent) so that ends meeting at one point (a light) are inside.
+    fn segment_shaft(&self, s: &Scratch) -> Option<Shaft> {
+        let rays = self.rays;
+        let end = |i: usize, t: f32| rays.origin(i).as_dvec3() + rays.dir(i).as_dvec3() * t as f64;
+        let ends = || {
+            s.idx
+                .iter()
+                .flat_map(move |&i| [end(i, rays.tmin[i]), end(i, rays.tmax[i])])
+        };
+        if !ends().all(|p| p.is_finite()) {
+            return None;
+        }
+        let n = s.idx.len() as f64;
+        let near = s.idx.iter().map(|&i| end(i, rays.tmin[i])).sum::<DVec3>() / n;
+        let far = s.idx.iter().map(|&i| end(i, rays.tmax[i])).sum::<DVec3>() / n;
+        let axis = (near - far).try_normalize()?;
+        let extent = ends().map(|p| (p - far).length()).fold(0.0, f64::max);
+        let apex = far - axis * (0.01 * extent);
+        let mut shaft = Shaft::fit(apex, ends().map(|p| p - apex))?;
+        shaft.cap = ends().map(|p| shaft.m.dot(p - apex)).fold(0.0, f64::max);
+        shaft.scale = 2.0 * ends().map(|p| (p - apex).length()).fold(0.0, f64::max);
+        Some(shaft)
+    }
+
+    /// One tile of rays `s.idx`: with `corners`, rays from one origin (camera, grids), capped by
+    /// the corners' hits; without, finite segments capped by their ends.
+    #[allow(clippy::too_many_arguments)]
+    fn shaft_tile<const ANY: bool>(
+        &self,
+        corners: Option<[usize; 4]>,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        let rays = self.rays;
+        s.done.clear();
+        s.done.resize(s.idx.len(), false);
+        c.tiles += 1;
+        let shaft = match corners {
+            _ if s.idx.len() < 4 => None,
+            Some(_) => self.origin_shaft(s),
+            None => self.segment_shaft(s),
+        };
+        let Some(mut shaft) = shaft else {
+            return self.fall_back::<ANY>(start, s, c, cost, emit);
+        };
+        // Origin shafts: capped at the segments' far ends when all are finite; for closest hits
+        // (or infinite segments) also at the corners' closest hits, grown by `cap_growth`.
+        let mut cap = shaft.cap;
+        if let Some(corners) = corners {
+            cap = s.idx.iter().fold(0.0f64, |h, &i| {
+                h.max(shaft.depth(rays.dir(i), rays.tmax[i]))
+            });
+            if !ANY || cap == f64::INFINITY {
+                let mut deepest = 0.0f64;
+                for (n, &i) in corners.iter().enumerate() {
+                    let slot = s.idx.iter().position(|&x| x == i).expect("corner in tile");
+                    if corners[..n].contains(&i) {
+                        continue;
+                    }
+                    c.corner_rays += 1;
+                    let best = self.walk::<false>(i, start, s, c, cost);
+                    deepest = deepest.max(if best.1 == MISS {
+                        f64::INFINITY
+                    } else {
+                        shaft.depth(rays.dir(i), best.0)
+                    });
+                    s.done[slot] = true;
+                    emit(i, best);
+                }
+                cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
+            }
+        }
+        shaft.cap = cap;
+        let before = (c.shaft_nodes, c.shaft_boxes);
+        if !self.collect(&shaft, s, c) {
+            return self.fall_back::<ANY>(start, s, c, cost, emit);
+        }
+        c.tiles_listed += 1;
+        c.list_len += s.list.len() as u64;
+        let shared = (c.shaft_nodes - before.0, c.shaft_boxes - before.1);
+        for n in 0..s.idx.len() {
+            if s.done[n] {
+                continue;
+            }
+            let i = s.idx[n];
+            let best = self.test_list::<ANY>(i, &s.list);
+            let len = s.list.len() as u64;
+            c.list_tests += len;
+            let d = rays.dir(i);
+            let proven = if corners.is_none() {
+                true // the whole segment is inside the capped shaft
+            } else if best.1 != MISS {
+                ANY || shaft.depth(d, best.0) <= cap
+            } else {
+                shaft.depth(d, rays.tmax[i]) <= cap
+            };
+            if let Some(cost) = cost {
+                cost.add(i - start, shared.0, shared.1 + len, len);
+            }
+            if proven {
+                c.list_rays += 1;
+                emit(i, best);
+            } else {
+                c.fallback_rays += 1;
+                let best = self.walk::<ANY>(i, start, s, c, cost);
+                emit(i, best);
+            }
+            s.done[n] = true;
+        }
+    }
+
+    /// Traces the tile's unanswered rays through the tree.
+    fn fall_back<const ANY: bool>(
+        &self,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        for n in 0..s.idx.len() {
+            if !s.done[n] {
+                let i = s.idx[n];
+                c.fallback_rays += 1;
+                let best = self.walk::<ANY>(i, start, s, c, cost);
+                emit(i, best);
+                s.done[n] = true;
+            }
+        }
+    }
+}
