@@ -164,7 +164,7 @@ fn measure(
     let c = |k: &str| srtt.work.get(k);
     let traced = c("corner_rays") + c("fallback_rays") + c("lone_rays");
     println!(
-        "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2})",
+        "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2}), per tile: shaft cells {:.1}, shaft box tests {:.1}",
         rays.len(),
         n / best_kd / 1e3,
         skd.work.get("ray_tri") as f64 / n,
@@ -178,6 +178,8 @@ fn measure(
         100.0 * c("tiles_listed") as f64 / c("tiles").max(1) as f64,
         (c("ray_tri") + c("list_tests")) as f64 / n,
         c("list_tests") as f64 / n,
+        c("shaft_nodes") as f64 / c("tiles").max(1) as f64,
+        c("shaft_boxes") as f64 / c("tiles").max(1) as f64,
     );
     Ok(())
 }

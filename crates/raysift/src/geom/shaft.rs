@@ -1,7 +1,7 @@
 //! Shafts: the four-sided pyramid, apex at a common ray origin, that bounds a small group of
 //! rays, truncated by a cap plane; and its conservative box test (relevant-triangle shafts).
 //!
-//! A [`Shaft`] is fitted to unit directions: `m` is their normalised mean, `(u, v)` complete an
+//! A [`Shaft`] is fitted to directions: `m` is their normalised sum, `(u, v)` complete an
 //! orthonormal frame, and each direction `e` projects to `(u·e, v·e) / (m·e)` on the plane one
 //! unit along `m`; the bounding rectangle `[u0, u1] × [v0, v1]` of the projections gives four
 //! planes through the apex with inward normals `u - u0·m`, `u1·m - u`, `v - v0·m`, `v1·m - v`.
@@ -42,25 +42,32 @@ pub struct Shaft {
     pub m: DVec3,
     /// Inward side normals (unit).
     pub sides: [DVec3; 4],
-    /// Largest depth kept (`+inf`: no cap).
-    pub cap: f64,
+    /// Largest depth kept (`+inf`: no cap); set with [`Shaft::set_cap`].
+    cap: f64,
     /// Smallest distance the tolerance is taken of: 0 when the rays start at the apex; for
     /// segments starting elsewhere, twice the largest distance from the apex to a segment end
     /// (the triangle test's rounding grows with the distance from the ray's origin).
     pub scale: f64,
+    /// The box test's planes `n·(x - apex) + off >= 0`, structure-of-arrays: the four sides,
+    /// "not behind the apex" (`m`, 0), the cap (`-m`, cap), and two that keep everything.
+    nx: [f64; 8],
+    ny: [f64; 8],
+    nz: [f64; 8],
+    off: [f64; 8],
 }
 
 impl Shaft {
     /// The shaft of apex `apex` around `dirs` (any lengths, non-zero and finite), uncapped;
     /// `None` when a direction is unusable or the group is too wide (some `m·e < MIN_COS`).
     pub fn fit(apex: DVec3, dirs: impl Iterator<Item = DVec3> + Clone) -> Option<Self> {
-        let unit = |d: DVec3| -> Option<DVec3> {
-            let l = d.length();
-            (l > 0.0 && l.is_finite()).then(|| d / l)
-        };
+        // Any positive combination of the directions is inside their cone: their plain sum.
         let mut sum = DVec3::ZERO;
         for d in dirs.clone() {
-            sum += unit(d)?;
+            let l2 = d.length_squared();
+            if !(l2 > 0.0 && l2.is_finite()) {
+                return None;
+            }
+            sum += d;
         }
         let m = sum.try_normalize()?;
         let u = m.any_orthonormal_vector();
@@ -72,23 +79,51 @@ impl Shaft {
             f64::NEG_INFINITY,
         );
         for d in dirs {
-            let e = unit(d)?;
-            let z = m.dot(e);
-            if !(z >= MIN_COS) {
+            let z = m.dot(d);
+            if !(z > 0.0 && z * z >= MIN_COS * MIN_COS * d.length_squared()) {
                 return None;
             }
-            let (pu, pv) = (u.dot(e) / z, v.dot(e) / z);
+            let iz = 1.0 / z;
+            let (pu, pv) = (u.dot(d) * iz, v.dot(d) * iz);
             (u0, u1, v0, v1) = (u0.min(pu), u1.max(pu), v0.min(pv), v1.max(pv));
         }
         let (u0, u1, v0, v1) = (u0 - PAD, u1 + PAD, v0 - PAD, v1 + PAD);
         let sides = [u - u0 * m, u1 * m - u, v - v0 * m, v1 * m - v].map(|n| n.normalize());
-        Some(Self {
+        let planes = [
+            sides[0],
+            sides[1],
+            sides[2],
+            sides[3],
+            m,
+            -m,
+            DVec3::ZERO,
+            DVec3::ZERO,
+        ];
+        let mut shaft = Self {
             apex,
             m,
             sides,
             cap: f64::INFINITY,
             scale: 0.0,
-        })
+            nx: planes.map(|n| n.x),
+            ny: planes.map(|n| n.y),
+            nz: planes.map(|n| n.z),
+            off: [0.0; 8],
+        };
+        shaft.set_cap(f64::INFINITY);
+        Some(shaft)
+    }
+
+    /// Keeps only points of depth `<= cap` (`+inf`: no cap).
+    pub fn set_cap(&mut self, cap: f64) {
+        self.cap = cap;
+        // An infinite cap keeps everything: a plane with offset +inf (0·x + inf >= 0).
+        self.off[5] = cap;
+    }
+
+    /// The cap depth.
+    pub fn cap(&self) -> f64 {
+        self.cap
     }
 
     /// Depth along `m` of the point at `t` on a ray from the apex with direction `d`.
@@ -99,23 +134,85 @@ impl Shaft {
 
     /// True when the box `[lo, hi]` is certainly outside the shaft (see the module doc): all of
     /// it beyond one side plane, behind the apex or beyond the cap, by `TOL` times its farthest
-    /// corner's distance.
+    /// corner's distance (bounded by the L1 norm, no square root).
     #[inline]
     pub fn box_outside(&self, lo: Vec3, hi: Vec3) -> bool {
-        let (lo, hi) = (lo.as_dvec3() - self.apex, hi.as_dvec3() - self.apex);
-        let far = lo.abs().max(hi.abs()).length();
-        let slack = TOL * far.max(self.scale);
-        for n in &self.sides {
-            // The corner farthest along n.
-            let c = DVec3::select(n.cmpge(DVec3::ZERO), hi, lo);
-            if n.dot(c) < -slack {
-                return true;
-            }
+        let (l, h) = (lo.as_dvec3() - self.apex, hi.as_dvec3() - self.apex);
+        let far = l.abs().max(h.abs());
+        let slack = -TOL * (far.x + far.y + far.z).max(self.scale);
+        let mut out = false;
+        for k in 0..8 {
+            // The plane's value at the box corner farthest along its normal.
+            let s = (self.nx[k] * l.x).max(self.nx[k] * h.x)
+                + (self.ny[k] * l.y).max(self.ny[k] * h.y)
+                + (self.nz[k] * l.z).max(self.nz[k] * h.z)
+                + self.off[k];
+            out |= s < slack;
         }
-        // Behind the apex (rays start at t >= 0), or beyond the cap.
-        let deepest = DVec3::select(self.m.cmpge(DVec3::ZERO), hi, lo);
-        let shallowest = DVec3::select(self.m.cmpge(DVec3::ZERO), lo, hi);
-        self.m.dot(deepest) < -slack || self.m.dot(shallowest) > self.cap + slack
+        out
+    }
+}
+
+/// The box test's eight plane values at one box, for walks that split boxes: a child differs
+/// from its parent on one axis only, so [`Shaft::split`] updates one term per plane instead of
+/// recomputing three ([`Shaft::box_outside`] is the same test from scratch).
+#[derive(Clone, Copy, Debug)]
+pub struct BoxPlanes {
+    s: [f64; 8],
+}
+
+impl Shaft {
+    /// The plane values at `[lo, hi]`.
+    #[inline]
+    pub fn planes(&self, lo: Vec3, hi: Vec3) -> BoxPlanes {
+        let (l, h) = (lo.as_dvec3() - self.apex, hi.as_dvec3() - self.apex);
+        let mut s = [0.0; 8];
+        for (k, s) in s.iter_mut().enumerate() {
+            *s = (self.nx[k] * l.x).max(self.nx[k] * h.x)
+                + (self.ny[k] * l.y).max(self.ny[k] * h.y)
+                + (self.nz[k] * l.z).max(self.nz[k] * h.z)
+                + self.off[k];
+        }
+        BoxPlanes { s }
+    }
+
+    /// The slack of [`Shaft::box_outside`] for `[lo, hi]`; a walk may use its root box's for
+    /// every box inside it (larger slack only keeps more).
+    #[inline]
+    pub fn slack(&self, lo: Vec3, hi: Vec3) -> f64 {
+        let (l, h) = (lo.as_dvec3() - self.apex, hi.as_dvec3() - self.apex);
+        let far = l.abs().max(h.abs());
+        TOL * (far.x + far.y + far.z).max(self.scale)
+    }
+
+    /// True when the box of `p` is outside by more than `slack`.
+    #[inline]
+    pub fn planes_outside(&self, p: &BoxPlanes, slack: f64) -> bool {
+        p.s.iter().fold(false, |out, &s| out | (s < -slack))
+    }
+
+    /// The plane values of a box whose `axis` range `[lo, hi]` becomes `[nlo, nhi]`.
+    #[inline]
+    pub fn split(
+        &self,
+        p: &BoxPlanes,
+        axis: usize,
+        (lo, hi): (f32, f32),
+        (nlo, nhi): (f32, f32),
+    ) -> BoxPlanes {
+        let a = self.apex[axis];
+        let (l, h) = (lo as f64 - a, hi as f64 - a);
+        let (nl, nh) = (nlo as f64 - a, nhi as f64 - a);
+        let n = match axis {
+            0 => &self.nx,
+            1 => &self.ny,
+            _ => &self.nz,
+        };
+        let mut s = p.s;
+        for k in 0..8 {
+            s[k] += (n[k] * nl).max(n[k] * nh) - (n[k] * l).max(n[k] * h);
+        }
+        BoxPlanes { s }
     }
 }
 
@@ -152,9 +249,43 @@ mod tests {
         assert!(s.box_outside(Vec3::new(-1.0, -1.0, -3.0), Vec3::new(1.0, 1.0, -1.0)));
         // A box straddling the apex is kept.
         assert!(!s.box_outside(Vec3::splat(-1.0), Vec3::splat(1.0)));
-        s.cap = 5.0;
+        s.set_cap(5.0);
         assert!(s.box_outside(Vec3::new(-1.0, -1.0, 6.0), Vec3::new(1.0, 1.0, 7.0)));
         assert!(!s.box_outside(Vec3::new(-1.0, -1.0, 4.0), Vec3::new(1.0, 1.0, 7.0)));
+    }
+
+    #[test]
+    fn split_planes_equal_the_full_test() {
+        let mut s = shaft();
+        s.set_cap(8.0);
+        let (lo, hi) = (Vec3::new(-3.0, -2.0, 1.0), Vec3::new(4.0, 2.5, 9.0));
+        let root = s.planes(lo, hi);
+        let slack = s.slack(lo, hi);
+        for (axis, cut) in [(0, 1.0f32), (1, -0.5), (2, 7.5), (0, -0.9)] {
+            let (mut blo, mut bhi) = (lo, hi);
+            bhi[axis] = cut;
+            let below = s.split(&root, axis, (lo[axis], hi[axis]), (lo[axis], cut));
+            let full = s.planes(blo, bhi);
+            for k in 0..8 {
+                assert!((below.s[k] - full.s[k]).abs() <= 1e-12, "{axis} {k}");
+            }
+            assert_eq!(
+                s.planes_outside(&full, slack),
+                s.planes_outside(&below, slack)
+            );
+            blo[axis] = cut;
+            bhi[axis] = hi[axis];
+            let above = s.split(&root, axis, (lo[axis], hi[axis]), (cut, hi[axis]));
+            let full = s.planes(blo, bhi);
+            assert_eq!(
+                s.planes_outside(&full, slack),
+                s.planes_outside(&above, slack)
+            );
+            assert_eq!(
+                s.box_outside(blo, bhi),
+                s.planes_outside(&full, s.slack(blo, bhi))
+            );
+        }
     }
 
     #[test]

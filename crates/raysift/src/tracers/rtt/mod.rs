@@ -82,6 +82,8 @@ pub struct Config {
     pub max_list: usize,
     /// Relative growth of the cap beyond the deepest corner hit (>= 0). Default 1e-3.
     pub cap_growth: f64,
+    /// Consecutive segments (shadow rays to a point light) per shaft (4..=256). Default 16.
+    pub segment_group: usize,
 }
 
 impl Default for Config {
@@ -90,6 +92,7 @@ impl Default for Config {
             tile: 4,
             max_list: 64,
             cap_growth: 1e-3,
+            segment_group: 16,
         }
     }
 }
@@ -112,6 +115,12 @@ impl Config {
                 self.cap_growth
             ));
         }
+        if !(4..=256).contains(&self.segment_group) {
+            return bad(format!(
+                "segment_group must be in 4..=256, got {}",
+                self.segment_group
+            ));
+        }
         Ok(())
     }
 }
@@ -129,6 +138,10 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc {
         key: "cap_growth",
         doc: "relative growth of the shaft's cap beyond the deepest corner hit (>= 0)",
+    },
+    OptionDoc {
+        key: "segment_group",
+        doc: "consecutive shadow rays to a point light per shaft (4..=256)",
     },
 ];
 
@@ -222,7 +235,7 @@ enum Plan {
     },
     /// Consecutive `side × side` grids; tasks are runs of whole grids.
     Grids { side: usize },
-    /// Segments towards one point (shadow rays to a point light): tiles of `tile²` consecutive
+    /// Segments towards one point (shadow rays to a point light): tiles of `segment_group` consecutive
     /// rays.
     Segments,
     /// Ray by ray.
@@ -288,7 +301,7 @@ impl Rtt {
         match plan {
             Plan::Image { width, samples, .. } => self.cfg.tile * width * samples,
             Plan::Grids { side } => side * side * (GRID_CHUNK / (side * side)).max(1),
-            Plan::Segments => CHUNK * self.cfg.tile * self.cfg.tile / 16,
+            Plan::Segments => CHUNK.div_ceil(self.cfg.segment_group) * self.cfg.segment_group,
             Plan::Rays => CHUNK,
         }
     }
@@ -336,7 +349,7 @@ impl Rtt {
                 (bands, 1)
             }
             Plan::Segments => {
-                let g = t * t;
+                let g = self.cfg.segment_group;
                 let mut s = Scratch::new(g, self.cfg.max_list);
                 for first in range.clone().step_by(g) {
                     let group = first..(first + g).min(range.end);

@@ -3,7 +3,7 @@
 
 use super::{Config, Counters};
 use crate::accel::kdtree::{KdTree, MAX_DEPTH};
-use crate::geom::shaft::Shaft;
+use crate::geom::shaft::{BoxPlanes, Shaft};
 use crate::geom::{intersect_triangle, Aabb};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
@@ -34,7 +34,7 @@ pub struct Scratch {
     /// The relevant-triangle list.
     list: Vec<u32>,
     /// The shaft walk's stack.
-    cells: Vec<(u32, Aabb)>,
+    cells: Vec<(u32, Aabb, BoxPlanes)>,
     /// The single-ray walk's stack.
     stack: [StackEntry; MAX_DEPTH],
 }
@@ -56,7 +56,7 @@ impl Scratch {
         self.idx.capacity() * 8
             + self.done.capacity()
             + self.list.capacity() * 4
-            + self.cells.capacity() * std::mem::size_of::<(u32, Aabb)>()
+            + self.cells.capacity() * std::mem::size_of::<(u32, Aabb, BoxPlanes)>()
             + std::mem::size_of::<[StackEntry; MAX_DEPTH]>()
     }
 }
@@ -126,10 +126,12 @@ impl Ctx<'_> {
         if tree.nodes.is_empty() {
             return true;
         }
-        s.cells.push((0, tree.bounds));
-        while let Some((node, cell)) = s.cells.pop() {
+        let root = tree.bounds;
+        let slack = shaft.slack(root.min, root.max);
+        s.cells.push((0, root, shaft.planes(root.min, root.max)));
+        while let Some((node, cell, planes)) = s.cells.pop() {
             c.shaft_boxes += 1;
-            if shaft.box_outside(cell.min, cell.max) {
+            if shaft.planes_outside(&planes, slack) {
                 continue;
             }
             c.shaft_nodes += 1;
@@ -151,8 +153,11 @@ impl Ctx<'_> {
                 let (mut below, mut above) = (cell, cell);
                 below.max[a] = split;
                 above.min[a] = split;
-                s.cells.push((n.above(), above));
-                s.cells.push((node + 1, below));
+                let range = (cell.min[a], cell.max[a]);
+                let pa = shaft.split(&planes, a, range, (split, cell.max[a]));
+                let pb = shaft.split(&planes, a, range, (cell.min[a], split));
+                s.cells.push((n.above(), above, pa));
+                s.cells.push((node + 1, below, pb));
             }
         }
         s.list.sort_unstable();
@@ -247,7 +252,7 @@ impl Ctx<'_> {
         let extent = ends().map(|p| (p - far).length()).fold(0.0, f64::max);
         let apex = far - axis * (0.01 * extent);
         let mut shaft = Shaft::fit(apex, ends().map(|p| p - apex))?;
-        shaft.cap = ends().map(|p| shaft.m.dot(p - apex)).fold(0.0, f64::max);
+        shaft.set_cap(ends().map(|p| shaft.m.dot(p - apex)).fold(0.0, f64::max));
         shaft.scale = 2.0 * ends().map(|p| (p - apex).length()).fold(0.0, f64::max);
         Some(shaft)
     }
@@ -278,7 +283,7 @@ impl Ctx<'_> {
         };
         // Origin shafts: capped at the segments' far ends when all are finite; for closest hits
         // (or infinite segments) also at the corners' closest hits, grown by `cap_growth`.
-        let mut cap = shaft.cap;
+        let mut cap = shaft.cap();
         if let Some(corners) = corners {
             cap = s.idx.iter().fold(0.0f64, |h, &i| {
                 h.max(shaft.depth(rays.dir(i), rays.tmax[i]))
@@ -303,7 +308,7 @@ impl Ctx<'_> {
                 cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
             }
         }
-        shaft.cap = cap;
+        shaft.set_cap(cap);
         let before = (c.shaft_nodes, c.shaft_boxes);
         if !self.collect(&shaft, s, c) {
             return self.fall_back::<ANY>(start, s, c, cost, emit);
