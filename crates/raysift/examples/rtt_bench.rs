@@ -3,14 +3,17 @@
 //!
 //! ```text
 //! cargo run --release -p raysift --example rtt_bench -- SCENE_SPEC \
-//!     [--width W] [--height H] [--aa 1,2,4] [--repeat R] [--threads N] [key=value ...]
+//!     [--width W] [--height H] [--aa 1,2,4] [--repeat R] [--threads N]
+//!     [--eye X,Y,Z] [--look X,Y,Z] [--fov DEG] [--light X,Y,Z] [--export-rays rays.npy]
+//!     [key=value ...]
 //! ```
 //!
-//! For each a in `--aa`: W×H pixels of a×a stratified jittered samples from the default framing
-//! (45° fov), closest hit; for a = 1 also shadow rays from the hits to a point light (above the
-//! scene's centre, inside its box), any hit. Options `key=value` go to `rtt`. Prints per measure
+//! For each a in `--aa`: W×H pixels of a×a stratified jittered samples from the camera (default:
+//! the framing of the scene's box, 45° fov), closest hit; for a = 1 also shadow rays from the hits
+//! to a point light (default: above the scene's centre, inside its box), any hit. Options `key=value` go to `rtt`. Prints per measure
 //! both times, their ratio, and `rtt`'s Table 1 counters: rays traced through the tree (corner,
 //! fallback, lone), share answered from lists, mean list length, triangle tests per ray.
+//! `--export-rays` writes the primary rays of the last `--aa` value (for `embree-peer`).
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
@@ -32,6 +35,15 @@ fn run() -> Res<()> {
     let (mut pos, mut opts) = (Vec::new(), Vec::new());
     let (mut w, mut h, mut repeat, mut threads) = (640u32, 480u32, 3usize, 0usize);
     let mut aa = vec![1u32];
+    let (mut eye, mut look, mut fov, mut light) = (None, None, 45.0f32, None);
+    let mut export: Option<String> = None;
+    let vec3 = |s: &str| -> Res<Vec3> {
+        let v: Vec<f32> = s.split(',').map(|x| x.parse()).collect::<Result<_, _>>()?;
+        match v[..] {
+            [x, y, z] => Ok(Vec3::new(x, y, z)),
+            _ => Err(format!("{s:?}: expected x,y,z").into()),
+        }
+    };
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = || it.next().ok_or(format!("{a} needs a value"));
@@ -40,6 +52,11 @@ fn run() -> Res<()> {
             "--height" => h = val()?.parse()?,
             "--repeat" => repeat = val()?.parse::<usize>()?.max(1),
             "--threads" => threads = val()?.parse()?,
+            "--eye" => eye = Some(vec3(val()?)?),
+            "--look" => look = Some(vec3(val()?)?),
+            "--fov" => fov = val()?.parse()?,
+            "--light" => light = Some(vec3(val()?)?),
+            "--export-rays" => export = Some(val()?.clone()),
             "--aa" => {
                 aa = val()?
                     .split(',')
@@ -70,19 +87,28 @@ fn run() -> Res<()> {
             scene.len(),
             rayon::current_num_threads()
         );
-        let cam = Camera::framing(&scene.bounds(), 45.0, w as f32 / h as f32);
+        let mut cam = Camera::framing(&scene.bounds(), fov, w as f32 / h as f32);
+        cam.eye = eye.unwrap_or(cam.eye);
+        cam.look = look.unwrap_or(cam.look);
+        cam.fov_deg = fov;
         for &a in &aa {
             let rays = if a == 1 {
                 cam.rays(w, h)
             } else {
                 pixel_samples(&cam, w, h, a)
             };
+            if let Some(path) = &export {
+                // The last sweep's rays, for the Embree peer (float32 (N, 8)).
+                raysift::rays::npy::write_rays(path, &rays)?;
+            }
             let label = format!("primary {w}x{h} aa {a}x{a}");
             measure(&label, &scene, &*kd, &*rtt, &rays, repeat, false)?;
             if a == 1 {
                 let (hits, _) = kd.intersect_timed(&scene, &rays)?;
                 let b = scene.bounds();
-                let light = b.min.lerp(b.max, 0.5) + Vec3::new(0.1, 0.45, 0.2) * (b.max - b.min);
+                let light = light.unwrap_or(
+                    b.min.lerp(b.max, 0.5) + Vec3::new(0.1, 0.45, 0.2) * (b.max - b.min),
+                );
                 let (shadow, _) = generate::shadow_rays(&scene, &rays, &hits, light);
                 measure(
                     "shadow (point light)",

@@ -12,9 +12,11 @@
 //! **Tiles.** A `Pinhole` batch is cut into `tile × tile` pixel tiles (the paper's 4×4; smaller
 //! at the image's right and bottom edges), a `PixelSamples` batch into the same pixel tiles with
 //! all their a×a samples ((4a)² rays: the paper's antialiased tiles), an `OriginGrids` batch
-//! (area-light shadow samples, hemisphere grids) into `tile × tile` tiles of each grid. `Unknown`
-//! batches are first recognised with `RayBatch::detect_layout`; other layouts are traced ray by
-//! ray through the tree (exactly `kdtree`).
+//! (area-light shadow samples, hemisphere grids) into `tile × tile` tiles of each grid, and a
+//! `ToPoint` batch (shadow rays to a point light: §3's shadow shafts) into groups of
+//! `segment_group` consecutive segments. `Unknown` batches are first recognised with
+//! `RayBatch::detect_layout`; other batches are traced ray by ray through the tree (exactly
+//! `kdtree`).
 //!
 //! **A tile** (`tile.rs`):
 //! 1. Its four corner rays (the outermost samples of its corner pixels) are traced through the
@@ -23,7 +25,10 @@
 //! 2. A shaft is fitted around *all* the tile's directions (not only the corners: jittered
 //!    samples may lie outside the corners' pyramid), apex at the common origin, and capped at the
 //!    depth (along the mean direction) of the deepest corner hit grown by `cap_growth`, or of
-//!    the farthest segment end when that is nearer; uncapped when a corner misses.
+//!    the farthest segment end when that is nearer; uncapped when a corner misses. A group of
+//!    segments (any origins) gets a shaft around both ends of every segment instead, its apex
+//!    pulled back behind their far ends (the light) and capped at their near ends: no corner
+//!    rays, every answer proven.
 //! 3. The shaft walks the tree, entering every cell its box test cannot rule out, and keeps
 //!    every triangle of those leaves whose box it cannot rule out (the paper's five tests per
 //!    triangle: four sides and the cap; here against the triangle's box, see below): the
@@ -49,6 +54,10 @@
 //! mean), and (c) the list holds at most `max_list` triangles; a listed tile's rays are then
 //! answered from the list where step 4 proves it. Corner rays that hit different triangles or
 //! different leaves do not unlist a tile; inner rays that see past the corners' depth fall back.
+//!
+//! **Not built** (the paper's, or the issue's): the corner rays are traced one by one (the 4-ray
+//! packet kd-tree walk is not written yet), and planar-reflection shafts (reflected rays of a
+//! tile come as one batch without a layout, traced ray by ray).
 //!
 //! **Counters** (the paper's Table 1): `list_rays / rays` is the share of rays answered without
 //! traversal, `list_len / tiles_listed` the mean list length, `nodes + leaves` the traversal
