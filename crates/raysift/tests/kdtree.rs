@@ -222,3 +222,37 @@ fn bad_options_are_clear_errors() {
         .to_string();
     assert!(e.contains("max_leaf"), "{e}");
 }
+
+/// 4-ray packets (`packets=4`): 2×2 pixel packets of a camera image and runs of four random
+/// rays (mixed direction signs: walked ray by ray) equal the single-ray walk, field for field,
+/// and the image's packets share their nodes (fewer interior-node visits than single rays).
+#[test]
+fn four_ray_packets_equal_single_rays_and_share_nodes() {
+    let scene = procedural::icosphere(5000);
+    let cam = Camera {
+        eye: Vec3::new(0.2, 0.3, 3.0),
+        look: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_deg: 40.0,
+    };
+    let opts = |p: &str| vec![("packets".to_string(), p.to_string())];
+    let mut single = tracers::create("kdtree", &opts("1")).unwrap();
+    let mut packets = tracers::create("kdtree", &opts("4")).unwrap();
+    single.prepare(&scene).unwrap();
+    packets.prepare(&scene).unwrap();
+    let image = cam.rays(65, 47); // odd sides: short packets at the right and bottom edges
+    let random = raysift::rays::generate::random_in_box(&scene.bounds(), 4001, 3);
+    for (rays, shared) in [(&image, true), (&random, false)] {
+        let (want, s1) = single.intersect_timed(&scene, rays).unwrap();
+        let (got, s4) = packets.intersect_timed(&scene, rays).unwrap();
+        assert_eq!(raysift::testkit::first_difference(&want, &got), None);
+        let (wo, _) = single.occluded_timed(&scene, rays).unwrap();
+        let (go, _) = packets.occluded_timed(&scene, rays).unwrap();
+        assert_eq!(wo, go);
+        let (n1, n4) = (s1.work.get("nodes"), s4.work.get("nodes"));
+        if shared {
+            assert!(n4 * 10 < n1 * 6, "packets visit {n4} nodes, single rays {n1}");
+        }
+    }
+    assert!(tracers::create("kdtree", &opts("2")).is_err());
+}

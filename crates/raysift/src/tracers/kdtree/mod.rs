@@ -5,6 +5,10 @@
 //! Havran 2006, box split clipping, empty-space bonus, threaded; its module doc proves the walk
 //! exact). Rebuilt whenever the scene changes.
 //!
+//! **Packets** (`packet.rs`, `packets=4`): 2×2 pixels of a pinhole image (4 consecutive rays
+//! otherwise) walk the tree together, the relevant-triangle shafts paper's SIMD baseline (Wald et
+//! al. 2001); each ray's decisions are its single-ray walk's, so the answers are too.
+//!
 //! **Traversal** (`traverse.rs`): pbrt-v3's front-to-back stack walk with 12-byte stack entries;
 //! the split distance is widened to [`KdTree::split_window`] so that every gated hit is found
 //! (triangles in split planes, axis-parallel rays in a plane, ties to the smaller id included).
@@ -15,13 +19,15 @@
 //! triangles are read from the scene's soup by id. Measured per scene in BENCHMARKS.md
 //! (§ kd-tree); `tests/kdtree.rs` checks the formula and a bound.
 
+mod packet;
 mod traverse;
 
 pub use crate::accel::kdtree::{BuildConfig, KdTree};
+pub use packet::{walk4, Stacks};
 pub use traverse::{walk, Best, Counters, StackEntry};
 
 use crate::error::Result;
-use crate::rays::{HitBatch, RayBatch};
+use crate::rays::{HitBatch, RayBatch, MISS};
 use crate::scene::{Change, Scene, Stamp};
 use crate::tracer::{par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tracer};
 use crate::tracers::{OptionDoc, Preset};
@@ -29,8 +35,67 @@ use crate::tracers::{OptionDoc, Preset};
 /// Rays per parallel task (as `bvh`).
 const CHUNK: usize = 256;
 
-/// Options (`kdtree:key=value`): the builder's, documented on [`BuildConfig`]'s fields.
-pub type Config = BuildConfig;
+/// Options (`kdtree:key=value`): the builder's (documented on [`BuildConfig`]'s fields, same
+/// defaults) and the walk's. Defaults are the fields' values.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// [`BuildConfig::traversal_cost`].
+    pub traversal_cost: f32,
+    /// [`BuildConfig::intersection_cost`].
+    pub intersection_cost: f32,
+    /// [`BuildConfig::empty_bonus`].
+    pub empty_bonus: f32,
+    /// [`BuildConfig::max_leaf`].
+    pub max_leaf: usize,
+    /// [`BuildConfig::max_depth`].
+    pub max_depth: usize,
+    /// [`BuildConfig::parallel_threshold`].
+    pub parallel_threshold: usize,
+    /// Rays walked together: 1 (single rays) or 4 (packets of 2×2 pixels for a pinhole image,
+    /// of 4 consecutive rays otherwise; `packet.rs`). Default 1.
+    pub packets: usize,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        let b = BuildConfig::default();
+        Self {
+            traversal_cost: b.traversal_cost,
+            intersection_cost: b.intersection_cost,
+            empty_bonus: b.empty_bonus,
+            max_leaf: b.max_leaf,
+            max_depth: b.max_depth,
+            parallel_threshold: b.parallel_threshold,
+            packets: 1,
+        }
+    }
+}
+
+impl Config {
+    /// The builder's part.
+    pub fn build(&self) -> BuildConfig {
+        BuildConfig {
+            traversal_cost: self.traversal_cost,
+            intersection_cost: self.intersection_cost,
+            empty_bonus: self.empty_bonus,
+            max_leaf: self.max_leaf,
+            max_depth: self.max_depth,
+            parallel_threshold: self.parallel_threshold,
+        }
+    }
+
+    fn check(&self) -> Result<()> {
+        self.build().check("tracer kdtree")?;
+        if !matches!(self.packets, 1 | 4) {
+            return Err(crate::error::Error::Invalid(format!(
+                "tracer kdtree: packets must be 1 or 4, got {}",
+                self.packets
+            )));
+        }
+        Ok(())
+    }
+}
 
 /// One line per option, for `raysift tracers --verbose`.
 pub const OPTION_DOCS: &[OptionDoc] = &[
@@ -58,6 +123,11 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         key: "parallel_threshold",
         doc: "nodes with at least this many triangles build in parallel",
     },
+    OptionDoc {
+        key: "packets",
+        doc:
+            "rays walked together: 1 or 4 (2×2 pixels of a pinhole image, else 4 consecutive rays)",
+    },
 ];
 
 /// Configurations the conformance suite checks besides the defaults.
@@ -78,12 +148,20 @@ pub const PRESETS: &[Preset] = &[
         name: "costly traversal, pbrt-v3 bonus",
         opts: &[("traversal_cost", "4"), ("empty_bonus", "0.5")],
     },
+    Preset {
+        name: "4-ray packets",
+        opts: &[("packets", "4")],
+    },
+    Preset {
+        name: "4-ray packets, leaves of 4",
+        opts: &[("packets", "4"), ("max_leaf", "4")],
+    },
 ];
 
 /// The `kdtree` tracer: a [`KdTree`] rebuilt when the scene changes.
 #[derive(Default)]
 pub struct KdTracer {
-    cfg: BuildConfig,
+    cfg: Config,
     tree: KdTree,
     stamp: Stamp,
 }
@@ -91,7 +169,7 @@ pub struct KdTracer {
 impl KdTracer {
     /// A tracer with `cfg` (checked) and no scene yet.
     pub fn new(cfg: Config) -> Result<Self> {
-        cfg.check("tracer kdtree")?;
+        cfg.check()?;
         Ok(Self {
             cfg,
             tree: KdTree::default(),
@@ -116,7 +194,7 @@ impl Tracer for KdTracer {
             self.stamp = Stamp::default();
             // Drop the old tree first so peak memory is one tree, not two.
             self.tree = KdTree::default();
-            self.tree = KdTree::build(scene.triangles(), &self.cfg)?;
+            self.tree = KdTree::build(scene.triangles(), &self.cfg.build())?;
             built.builds = 1;
         }
         self.stamp = scene.stamp();
@@ -138,6 +216,19 @@ impl Tracer for KdTracer {
     ) -> Result<Stats> {
         self.stamp.check(scene, self.name())?;
         let soup = scene.triangles();
+        if self.cfg.packets == 4 {
+            let plan = packet::plan(rays);
+            let c: Counters = par_ray_chunks(rays, hits, cost, plan.chunk(), |range, out, cost| {
+                let start = range.start;
+                packet::chunk::<false>(&self.tree, soup, rays, plan, range, cost, &mut |i, b| {
+                    if b.1 != MISS {
+                        let k = i - start;
+                        (out.t[k], out.prim[k], out.u[k], out.v[k]) = b;
+                    }
+                })
+            });
+            return Ok(Stats::traced(rays.len(), &c));
+        }
         let c: Counters = par_ray_chunks(rays, hits, cost, CHUNK, |range, out, cost| {
             traverse::closest_chunk(&self.tree, soup, rays, range, out, cost)
         });
@@ -153,6 +244,17 @@ impl Tracer for KdTracer {
     ) -> Result<Stats> {
         self.stamp.check(scene, self.name())?;
         let soup = scene.triangles();
+        if self.cfg.packets == 4 {
+            let plan = packet::plan(rays);
+            let c: Counters =
+                par_occlusion_chunks(rays, occluded, cost, plan.chunk(), |range, out, cost| {
+                    let start = range.start;
+                    packet::chunk::<true>(&self.tree, soup, rays, plan, range, cost, &mut |i, b| {
+                        out[i - start] = b.1 != MISS;
+                    })
+                });
+            return Ok(Stats::traced(rays.len(), &c));
+        }
         let c: Counters = par_occlusion_chunks(rays, occluded, cost, CHUNK, |range, out, cost| {
             traverse::occluded_chunk(&self.tree, soup, rays, range, out, cost)
         });

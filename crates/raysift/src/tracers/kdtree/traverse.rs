@@ -136,7 +136,12 @@ pub fn walk<const ANY: bool>(
 
 /// Charges one ray's share of the counters (`after - before`) to its cost record.
 #[inline]
-fn charge(cost: &mut Option<CostMut<'_>>, k: usize, before: &Counters, after: &Counters) {
+pub(super) fn charge(
+    cost: &mut Option<CostMut<'_>>,
+    k: usize,
+    before: &Counters,
+    after: &Counters,
+) {
     if let Some(cost) = cost {
         let tri = after.ray_tri - before.ray_tri;
         let nodes = (after.nodes - before.nodes) + (after.leaves - before.leaves);

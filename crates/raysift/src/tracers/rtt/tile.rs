@@ -8,7 +8,7 @@ use crate::geom::{intersect_triangle, Aabb};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
-use crate::tracers::kdtree::{walk, Best, Counters as KdCounters, StackEntry};
+use crate::tracers::kdtree::{walk, walk4, Best, Counters as KdCounters, StackEntry, Stacks};
 use glam::DVec3;
 
 /// Rows of pixels sharing one origin, as laid out in the batch: ray `base + (j·width + i)·samples
@@ -37,6 +37,8 @@ pub struct Scratch {
     cells: Vec<(u32, Aabb, BoxPlanes)>,
     /// The single-ray walk's stack.
     stack: [StackEntry; MAX_DEPTH],
+    /// The corner packet's stacks.
+    packet: Box<Stacks>,
 }
 
 impl Scratch {
@@ -48,6 +50,7 @@ impl Scratch {
             list: Vec::with_capacity(2 * max_list + LIST_OVERRUN),
             cells: Vec::with_capacity(MAX_DEPTH + 2),
             stack: [StackEntry::default(); MAX_DEPTH],
+            packet: Box::default(),
         }
     }
 
@@ -58,6 +61,7 @@ impl Scratch {
             + self.list.capacity() * 4
             + self.cells.capacity() * std::mem::size_of::<(u32, Aabb, BoxPlanes)>()
             + std::mem::size_of::<[StackEntry; MAX_DEPTH]>()
+            + std::mem::size_of::<Stacks>()
     }
 }
 
@@ -91,6 +95,27 @@ impl Ctx<'_> {
         if let Some(cost) = cost {
             let nodes = k.nodes + k.leaves;
             cost.add(i - start, nodes, k.ray_box + k.nodes + k.ray_tri, k.ray_tri);
+        }
+        c.add_walk(&k);
+        best
+    }
+
+    /// Rays `ids` (1 to 4) through the tree as one packet; each charged the packet's work.
+    fn walk4(
+        &self,
+        ids: &[usize],
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+    ) -> [Best; 4] {
+        let mut k = KdCounters::default();
+        let best = walk4::<false>(self.tree, self.soup, self.rays, ids, &mut s.packet, &mut k);
+        if let Some(cost) = cost {
+            for &i in ids {
+                let nodes = k.nodes + k.leaves;
+                cost.add(i - start, nodes, k.ray_box + k.nodes + k.ray_tri, k.ray_tri);
+            }
         }
         c.add_walk(&k);
         best
@@ -289,19 +314,25 @@ impl Ctx<'_> {
                 h.max(shaft.depth(rays.dir(i), rays.tmax[i]))
             });
             if !ANY || cap == f64::INFINITY {
-                let mut deepest = 0.0f64;
-                for (n, &i) in corners.iter().enumerate() {
-                    let slot = s.idx.iter().position(|&x| x == i).expect("corner in tile");
-                    if corners[..n].contains(&i) {
-                        continue;
+                // The distinct corners, walked as one 4-ray packet (the paper's SIMD corners).
+                let mut ids = [0usize; 4];
+                let mut n = 0;
+                for &i in &corners {
+                    if !ids[..n].contains(&i) {
+                        ids[n] = i;
+                        n += 1;
                     }
+                }
+                let hits = self.walk4(&ids[..n], start, s, c, cost);
+                let mut deepest = 0.0f64;
+                for (&i, &best) in ids[..n].iter().zip(&hits) {
                     c.corner_rays += 1;
-                    let best = self.walk::<false>(i, start, s, c, cost);
                     deepest = deepest.max(if best.1 == MISS {
                         f64::INFINITY
                     } else {
                         shaft.depth(rays.dir(i), best.0)
                     });
+                    let slot = s.idx.iter().position(|&x| x == i).expect("corner in tile");
                     s.done[slot] = true;
                     emit(i, best);
                 }
