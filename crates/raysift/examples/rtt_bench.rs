@@ -5,6 +5,7 @@
 //! cargo run --release -p raysift --example rtt_bench -- SCENE_SPEC \
 //!     [--width W] [--height H] [--aa 1,2,4] [--repeat R] [--threads N]
 //!     [--eye X,Y,Z] [--look X,Y,Z] [--fov DEG] [--light X,Y,Z] [--export-rays rays.npy]
+//!     [--kd-packets 1|4]
 //!     [key=value ...]
 //! ```
 //!
@@ -13,7 +14,7 @@
 //! to a point light (default: above the scene's centre, inside its box), any hit. Options `key=value` go to `rtt`. Prints per measure
 //! both times, their ratio, and `rtt`'s Table 1 counters: rays traced through the tree (corner,
 //! fallback, lone), share answered from lists, mean list length, triangle tests per ray.
-//! `--export-rays` writes the primary rays of the last `--aa` value (for `embree-peer`).
+//! `--kd-packets 4` makes the baseline the 4-ray packet kd-tree (the paper's). `--export-rays` writes the primary rays of the last `--aa` value (for `embree-peer`).
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
@@ -37,6 +38,7 @@ fn run() -> Res<()> {
     let mut aa = vec![1u32];
     let (mut eye, mut look, mut fov, mut light) = (None, None, 45.0f32, None);
     let mut export: Option<String> = None;
+    let mut kd_packets = "1".to_string();
     let vec3 = |s: &str| -> Res<Vec3> {
         let v: Vec<f32> = s.split(',').map(|x| x.parse()).collect::<Result<_, _>>()?;
         match v[..] {
@@ -57,6 +59,7 @@ fn run() -> Res<()> {
             "--fov" => fov = val()?.parse()?,
             "--light" => light = Some(vec3(val()?)?),
             "--export-rays" => export = Some(val()?.clone()),
+            "--kd-packets" => kd_packets = val()?.clone(),
             "--aa" => {
                 aa = val()?
                     .split(',')
@@ -75,14 +78,14 @@ fn run() -> Res<()> {
         .build()?;
     pool.install(|| -> Res<()> {
         let scene = procedural::open(spec)?;
-        let mut kd = tracers::create("kdtree", &[])?;
+        let mut kd = tracers::create("kdtree", &[("packets".into(), kd_packets.clone())])?;
         let mut rtt = tracers::create("rtt", &tracers::parse_opts(&opts)?)?;
         let t0 = Instant::now();
         kd.prepare(&scene)?;
         let build = t0.elapsed().as_secs_f64() * 1e3;
         rtt.prepare(&scene)?;
         println!(
-            "scene {} ({} triangles), rtt {opts:?}, {} threads, kd-tree built in {build:.0} ms",
+            "scene {} ({} triangles), rtt {opts:?}, kdtree packets={kd_packets}, {} threads, kd-tree built in {build:.0} ms",
             scene.name,
             scene.len(),
             rayon::current_num_threads()

@@ -78,6 +78,9 @@ pub fn walk4<const ANY: bool>(
         return best;
     }
     let neg = slab[0].neg;
+    // Origins and reciprocal directions by axis, lanes contiguous.
+    let org: [[f32; 4]; 3] = std::array::from_fn(|a| std::array::from_fn(|k| slab[k].origin[a]));
+    let inv: [[f32; 4]; 3] = std::array::from_fn(|a| std::array::from_fn(|k| slab[k].inv_dir[a]));
     let tmin: [f32; 4] = std::array::from_fn(|k| rays.tmin[lane(k)]);
     let mut bt: [f32; 4] = std::array::from_fn(|k| rays.tmax[lane(k)]);
     for k in 0..4 {
@@ -142,24 +145,27 @@ pub fn walk4<const ANY: bool>(
                 } else {
                     (below, above)
                 };
-                let (mut n_tn, mut n_tf) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
-                let (mut f_tn, mut f_tf) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
+                // Branch-free over the four lanes (SSE): inactive lanes compute too, and are
+                // masked out after.
+                let (mut n_tf, mut f_tn) = ([0.0f32; 4], [0.0f32; 4]);
                 let (mut go_near, mut go_far) = (0u32, 0u32);
                 for k in 0..4 {
-                    if mask >> k & 1 == 0 {
-                        continue;
-                    }
-                    let ts = (split - slab[k].origin[a]) * slab[k].inv_dir[a];
+                    let ts = (split - org[a][k]) * inv[a][k];
                     let (lo, hi) = KdTree::split_window(ts);
-                    let near_exit = if hi < tf[k] { hi } else { tf[k] };
-                    let far_entry = if lo > tn[k] { lo } else { tn[k] };
-                    if tn[k] <= near_exit {
-                        go_near |= 1 << k;
-                        (n_tn[k], n_tf[k]) = (tn[k], near_exit);
+                    n_tf[k] = if hi < tf[k] { hi } else { tf[k] };
+                    f_tn[k] = if lo > tn[k] { lo } else { tn[k] };
+                    go_near |= ((tn[k] <= n_tf[k]) as u32) << k;
+                    go_far |= ((f_tn[k] <= tf[k] && f_tn[k] <= bt[k]) as u32) << k;
+                }
+                let (go_near, go_far) = (go_near & mask, go_far & mask);
+                // Lanes not going a way get an empty interval there.
+                let (mut n_tn, mut f_tf) = (tn, tf);
+                for k in 0..4 {
+                    if go_near >> k & 1 == 0 {
+                        (n_tn[k], n_tf[k]) = (f32::INFINITY, f32::NEG_INFINITY);
                     }
-                    if far_entry <= tf[k] && far_entry <= bt[k] {
-                        go_far |= 1 << k;
-                        (f_tn[k], f_tf[k]) = (far_entry, tf[k]);
+                    if go_far >> k & 1 == 0 {
+                        (f_tn[k], f_tf[k]) = (f32::INFINITY, f32::NEG_INFINITY);
                     }
                 }
                 if go_near != 0 {
