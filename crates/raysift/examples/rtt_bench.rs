@@ -13,7 +13,7 @@
 //! the framing of the scene's box, 45° fov), closest hit; for a = 1 also shadow rays from the hits
 //! to a point light (default: above the scene's centre, inside its box), any hit. Options `key=value` go to `rtt`. Prints per measure
 //! both times, their ratio, and `rtt`'s Table 1 counters: rays traced through the tree (corner,
-//! fallback, lone), share answered from lists, mean list length, triangle tests per ray.
+//! fallback), share answered from lists, mean list length, triangle tests per ray.
 //! `--kd-packets 4` makes the baseline the 4-ray packet kd-tree (the paper's). `--export-rays` writes the primary rays of the last `--aa` value (for `embree-peer`).
 
 use glam::Vec3;
@@ -191,7 +191,7 @@ fn measure(
     }
     let n = rays.len().max(1) as f64;
     let c = |k: &str| srtt.work.get(k);
-    let traced = c("corner_rays") + c("fallback_rays") + c("lone_rays");
+    let traced = c("corner_rays") + c("fallback_rays");
     println!(
         "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2}), per tile: shaft cells {:.1}, shaft box tests {:.1}",
         rays.len(),

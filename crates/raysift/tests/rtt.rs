@@ -257,6 +257,53 @@ fn point_light_shadow_shafts() {
 }
 
 #[test]
+fn planar_mirror_reflection_shafts() {
+    // A mirror square behind a sphere; the camera's rays that hit the mirror are reflected
+    // (origin nudged off the plane, as the renderers do) and traced as one batch without a
+    // layout: groups of 16 meet near the mirrored eye, the apex of their shaft.
+    let sphere = procedural::icosphere(1280);
+    let mirror = Mesh::new(
+        "mirror",
+        vec![
+            Vec3::new(-4.0, -4.0, -2.0),
+            Vec3::new(4.0, -4.0, -2.0),
+            Vec3::new(4.0, 4.0, -2.0),
+            Vec3::new(-4.0, 4.0, -2.0),
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    );
+    let mut meshes = sphere.meshes().to_vec();
+    meshes.push(mirror);
+    let scene = Scene::from_meshes("sphere+mirror", meshes).unwrap();
+    let cam = camera(Vec3::new(1.5, 0.5, 4.0), Vec3::new(0.0, 0.0, -2.0)).rays(96, 72);
+    let hits = Oracle::new(&scene, &cam).hits;
+    let first_mirror = scene.len() as u32 - 2;
+    let mut refl = RayBatch::default();
+    for i in 0..cam.len() {
+        if hits.prim[i] >= first_mirror && hits.prim[i] != raysift::rays::MISS {
+            let (o, d) = (cam.origin(i), cam.dir(i));
+            let p = o + d * hits.t[i];
+            refl.push(Ray {
+                origin: p + Vec3::Z * 1e-4,
+                dir: Vec3::new(d.x, d.y, -d.z),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
+        }
+    }
+    assert_eq!(refl.layout, RayLayout::Unknown);
+    assert!(refl.len() > 2000, "{} reflected rays", refl.len());
+    let (c, any) = check(&scene, &refl);
+    assert!(c.get("corner_rays") > 0);
+    assert!(listed(&c, &refl) > 0.5, "{c:?}");
+    assert!(listed(&any, &refl) > 0.5, "{any:?}");
+    // Random rays meet nowhere: every group falls back, the answers stay exact.
+    let random = generate::random_in_box(&scene.bounds(), 3000, 9);
+    let (c, _) = check(&scene, &random);
+    assert!(listed(&c, &random) < 0.05, "{c:?}");
+}
+
+#[test]
 fn hit_ids_equal_the_kdtree_baseline() {
     // The paper's check: the image's hit triangle ids equal the baseline's, here with every
     // field of every hit, on a soup of thin triangles (the paper's foliage) and a sphere.

@@ -132,6 +132,13 @@ impl Shaft {
         t as f64 * self.m.dot(d.as_dvec3())
     }
 
+    /// Depth along `m` of the point at `t` on the ray `o + t·d` (increasing in `t` for rays
+    /// inside the shaft); [`Shaft::depth`] when `o` is the apex.
+    #[inline]
+    pub fn depth_from(&self, o: Vec3, d: Vec3, t: f32) -> f64 {
+        self.m.dot(o.as_dvec3() - self.apex) + t as f64 * self.m.dot(d.as_dvec3())
+    }
+
     /// True when the box `[lo, hi]` is certainly outside the shaft (see the module doc): all of
     /// it beyond one side plane, behind the apex or beyond the cap, by `TOL` times its farthest
     /// corner's distance (bounded by the L1 norm, no square root).

@@ -15,8 +15,10 @@
 //! (area-light shadow samples, hemisphere grids) into `tile × tile` tiles of each grid, and a
 //! `ToPoint` batch (shadow rays to a point light: §3's shadow shafts) into groups of
 //! `segment_group` consecutive segments. `Unknown` batches are first recognised with
-//! `RayBatch::detect_layout`; other batches are traced ray by ray through the tree (exactly
-//! `kdtree`).
+//! `RayBatch::detect_layout`; any other batch is cut into groups of `segment_group` consecutive
+//! rays whose shaft's apex is the point nearest all their lines: the reflections of a camera
+//! tile in a planar mirror meet at the mirrored eye (§3's reflection shafts); groups that meet
+//! nowhere (random or bounce rays) fail the shaft fit and are traced ray by ray.
 //!
 //! **A tile** (`tile.rs`):
 //! 1. Its four corner rays (the outermost samples of its corner pixels) are traced through the
@@ -55,9 +57,7 @@
 //! answered from the list where step 4 proves it. Corner rays that hit different triangles or
 //! different leaves do not unlist a tile; inner rays that see past the corners' depth fall back.
 //!
-//! **Not built** (the paper's, or the issue's): the corner rays are traced one by one (the 4-ray
-//! packet kd-tree walk is not written yet), and planar-reflection shafts (reflected rays of a
-//! tile come as one batch without a layout, traced ray by ray).
+//! Corner rays are walked as one 4-ray packet (`kdtree`'s `packet.rs`).
 //!
 //! **Counters** (the paper's Table 1): `list_rays / rays` is the share of rays answered without
 //! traversal, `list_len / tiles_listed` the mean list length, `nodes + leaves` the traversal
@@ -196,8 +196,6 @@ crate::counters! {
         shaft_nodes,
         /// Shaft/box tests (cells and triangle boxes).
         shaft_boxes,
-        /// Rays traced alone (batches without tiles).
-        lone_rays,
         /// Single-ray walks: root box tests.
         ray_box,
         /// Single-ray walks: interior nodes visited.
@@ -228,7 +226,7 @@ pub const COUNTERS: (CounterDocs, CounterDocs) = (
     <Counters as crate::tracer::CounterSet>::DOCS,
 );
 
-/// Rays per parallel task for batches traced ray by ray.
+/// Rays per parallel task for groups of consecutive rays.
 const CHUNK: usize = 256;
 /// Rays per parallel task, at least, for grids.
 const GRID_CHUNK: usize = 1024;
@@ -247,8 +245,9 @@ enum Plan {
     /// Segments towards one point (shadow rays to a point light): tiles of `segment_group` consecutive
     /// rays.
     Segments,
-    /// Ray by ray.
-    Rays,
+    /// Groups of `segment_group` consecutive rays whose lines may meet near one point
+    /// (reflections off a planar mirror; anything else falls back ray by ray).
+    Lines,
 }
 
 /// The `rtt` tracer: a [`KdTree`] rebuilt when the scene changes, traced in shafts.
@@ -302,7 +301,7 @@ impl Rtt {
                 }
             }
             RayLayout::ToPoint { .. } => Plan::Segments,
-            _ => Plan::Rays,
+            _ => Plan::Lines,
         }
     }
 
@@ -310,8 +309,9 @@ impl Rtt {
         match plan {
             Plan::Image { width, samples, .. } => self.cfg.tile * width * samples,
             Plan::Grids { side } => side * side * (GRID_CHUNK / (side * side)).max(1),
-            Plan::Segments => CHUNK.div_ceil(self.cfg.segment_group) * self.cfg.segment_group,
-            Plan::Rays => CHUNK,
+            Plan::Segments | Plan::Lines => {
+                CHUNK.div_ceil(self.cfg.segment_group) * self.cfg.segment_group
+            }
         }
     }
 
@@ -357,21 +357,16 @@ impl Rtt {
                     .collect();
                 (bands, 1)
             }
-            Plan::Segments => {
+            Plan::Segments | Plan::Lines => {
                 let g = self.cfg.segment_group;
                 let mut s = Scratch::new(g, self.cfg.max_list);
                 for first in range.clone().step_by(g) {
                     let group = first..(first + g).min(range.end);
-                    ctx.segments::<ANY>(group, range.start, &mut s, &mut c, &mut cost, emit);
-                }
-                return c;
-            }
-            Plan::Rays => {
-                let mut s = Scratch::new(0, 0);
-                for i in range.clone() {
-                    c.lone_rays += 1;
-                    let best = ctx.walk::<ANY>(i, range.start, &mut s, &mut c, &mut cost);
-                    emit(i, best);
+                    if matches!(plan, Plan::Segments) {
+                        ctx.segments::<ANY>(group, range.start, &mut s, &mut c, &mut cost, emit);
+                    } else {
+                        ctx.lines::<ANY>(group, range.start, &mut s, &mut c, &mut cost, emit);
+                    }
                 }
                 return c;
             }

@@ -9,7 +9,7 @@ use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
 use crate::tracers::kdtree::{walk, walk4, Best, Counters as KdCounters, StackEntry, Stacks};
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 /// Rows of pixels sharing one origin, as laid out in the batch: ray `base + (j·width + i)·samples
 /// + k` is sample `k` of pixel `(i, j)`, `j < rows`.
@@ -23,6 +23,18 @@ pub struct Band {
     pub rows: usize,
     /// Rays per pixel (`a²`: the corner rays are the outermost samples of the corner pixels).
     pub samples: usize,
+}
+
+/// What a tile's rays share, which decides its shaft.
+#[derive(Clone, Copy, Debug)]
+pub enum Kind {
+    /// One origin (camera tiles, grids): apex there; these four rays set the cap.
+    Origin([usize; 4]),
+    /// Lines meeting near one point (reflections of a camera in a planar mirror), any origins:
+    /// apex at their least-squares meeting point; these four rays set the cap.
+    Lines([usize; 4]),
+    /// Finite segments (shadow rays to a point light): a shaft around both ends of each.
+    Segments,
 }
 
 /// Per-chunk scratch (allocated once per chunk, never per ray or node).
@@ -220,7 +232,7 @@ impl Ctx<'_> {
             at(r, b, ns - 1),
             at(i0, b, ns - a),
         ];
-        self.shaft_tile::<ANY>(Some(corners), start, s, c, cost, emit);
+        self.shaft_tile::<ANY>(Kind::Origin(corners), start, s, c, cost, emit);
     }
 
     /// Traces rays `group` (finite segments, any origins: shadow rays to a point light) as one
@@ -237,7 +249,73 @@ impl Ctx<'_> {
     ) {
         s.idx.clear();
         s.idx.extend(group);
-        self.shaft_tile::<ANY>(None, start, s, c, cost, emit);
+        self.shaft_tile::<ANY>(Kind::Segments, start, s, c, cost, emit);
+    }
+
+    /// Traces rays `group` (no layout: maybe reflections off a planar mirror) as one tile whose
+    /// shaft's apex is the point nearest all their lines; its first, last and two middle rays
+    /// set the cap.
+    #[allow(clippy::too_many_arguments)]
+    pub fn lines<const ANY: bool>(
+        &self,
+        group: std::ops::Range<usize>,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        let (a, n) = (group.start, group.len());
+        let corners = [a, a + n / 3, a + (2 * n) / 3, a + n.max(1) - 1];
+        s.idx.clear();
+        s.idx.extend(group);
+        self.shaft_tile::<ANY>(Kind::Lines(corners), start, s, c, cost, emit);
+    }
+
+    /// The shaft of rays `s.idx` whose lines meet near one point: apex at the least-squares
+    /// point of the lines (or far behind the origins when the rays are nearly parallel), fitted
+    /// around every origin (seen from the apex) and every direction, so that each ray, from its
+    /// origin on, is inside (a convex cone holds `o + t·d` when it holds `o` and `d`).
+    fn line_shaft(&self, s: &Scratch) -> Option<Shaft> {
+        let rays = self.rays;
+        let (mut a, mut b) = (DMat3::ZERO, DVec3::ZERO);
+        let (mut sum_e, mut centre) = (DVec3::ZERO, DVec3::ZERO);
+        for &i in &s.idx {
+            let (o, d) = (rays.origin(i).as_dvec3(), rays.dir(i).as_dvec3());
+            let l = d.length();
+            if !(l > 0.0 && l.is_finite() && o.is_finite() && rays.tmin[i] >= 0.0) {
+                return None;
+            }
+            let e = d / l;
+            let p = DMat3::IDENTITY - DMat3::from_cols(e * e.x, e * e.y, e * e.z);
+            a += p;
+            b += p * o;
+            sum_e += e;
+            centre += o;
+        }
+        let n = s.idx.len() as f64;
+        let (m, centre) = (sum_e.try_normalize()?, centre / n);
+        let spread = s.idx.iter().fold(0.0f64, |r, &i| {
+            r.max((rays.origin(i).as_dvec3() - centre).length())
+        });
+        let behind = |p: DVec3| {
+            s.idx
+                .iter()
+                .all(|&i| m.dot(rays.origin(i).as_dvec3() - p) >= 0.0)
+        };
+        let meet = (a.determinant().abs() > 1e-9 * n * n * n)
+            .then(|| a.inverse() * b)
+            .filter(|&p| p.is_finite() && behind(p));
+        let apex =
+            meet.unwrap_or(centre - m * (100.0 * spread + 1e-3 * centre.abs().max_element()));
+        let origins = s.idx.iter().map(move |&i| rays.origin(i).as_dvec3() - apex);
+        let dirs = s.idx.iter().map(|&i| rays.dir(i).as_dvec3());
+        let mut shaft = Shaft::fit(
+            apex,
+            origins.clone().filter(|v| *v != DVec3::ZERO).chain(dirs),
+        )?;
+        shaft.scale = 2.0 * origins.map(|v| v.length()).fold(0.0, f64::max);
+        Some(shaft)
     }
 
     /// The shaft of rays `s.idx` from one origin (apex there), uncapped; `None` when they do not
@@ -282,12 +360,12 @@ impl Ctx<'_> {
         Some(shaft)
     }
 
-    /// One tile of rays `s.idx`: with `corners`, rays from one origin (camera, grids), capped by
-    /// the corners' hits; without, finite segments capped by their ends.
+    /// One tile of rays `s.idx`, its shaft as `kind` says: rays from one origin or lines capped
+    /// by their corners' hits (or their far ends), segments capped by their ends.
     #[allow(clippy::too_many_arguments)]
     fn shaft_tile<const ANY: bool>(
         &self,
-        corners: Option<[usize; 4]>,
+        kind: Kind,
         start: usize,
         s: &mut Scratch,
         c: &mut Counters,
@@ -298,10 +376,11 @@ impl Ctx<'_> {
         s.done.clear();
         s.done.resize(s.idx.len(), false);
         c.tiles += 1;
-        let shaft = match corners {
-            _ if s.idx.len() < 4 => None,
-            Some(_) => self.origin_shaft(s),
-            None => self.segment_shaft(s),
+        let (shaft, corners) = match kind {
+            _ if s.idx.len() < 4 => (None, None),
+            Kind::Origin(k) => (self.origin_shaft(s), Some(k)),
+            Kind::Lines(k) => (self.line_shaft(s), Some(k)),
+            Kind::Segments => (self.segment_shaft(s), None),
         };
         let Some(mut shaft) = shaft else {
             return self.fall_back::<ANY>(start, s, c, cost, emit);
@@ -311,7 +390,7 @@ impl Ctx<'_> {
         let mut cap = shaft.cap();
         if let Some(corners) = corners {
             cap = s.idx.iter().fold(0.0f64, |h, &i| {
-                h.max(shaft.depth(rays.dir(i), rays.tmax[i]))
+                h.max(shaft.depth_from(rays.origin(i), rays.dir(i), rays.tmax[i]))
             });
             if !ANY || cap == f64::INFINITY {
                 // The distinct corners, walked as one 4-ray packet (the paper's SIMD corners).
@@ -330,7 +409,7 @@ impl Ctx<'_> {
                     deepest = deepest.max(if best.1 == MISS {
                         f64::INFINITY
                     } else {
-                        shaft.depth(rays.dir(i), best.0)
+                        shaft.depth_from(rays.origin(i), rays.dir(i), best.0)
                     });
                     let slot = s.idx.iter().position(|&x| x == i).expect("corner in tile");
                     s.done[slot] = true;
@@ -355,13 +434,13 @@ impl Ctx<'_> {
             let best = self.test_list::<ANY>(i, &s.list);
             let len = s.list.len() as u64;
             c.list_tests += len;
-            let d = rays.dir(i);
+            let (o, d) = (rays.origin(i), rays.dir(i));
             let proven = if corners.is_none() {
                 true // the whole segment is inside the capped shaft
             } else if best.1 != MISS {
-                ANY || shaft.depth(d, best.0) <= cap
+                ANY || shaft.depth_from(o, d, best.0) <= cap
             } else {
-                shaft.depth(d, rays.tmax[i]) <= cap
+                shaft.depth_from(o, d, rays.tmax[i]) <= cap
             };
             if let Some(cost) = cost {
                 cost.add(i - start, shared.0, shared.1 + len, len);
