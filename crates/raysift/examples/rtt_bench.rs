@@ -17,8 +17,7 @@
 //! `--kd-packets 4` makes the baseline the 4-ray packet kd-tree (the paper's). `--export-rays` writes the primary rays of the last `--aa` value (for `embree-peer`).
 
 use glam::Vec3;
-use rand::{Rng, SeedableRng};
-use raysift::rays::{generate, Camera, Ray, RayLayout};
+use raysift::rays::{generate, Camera};
 use raysift::{scene::procedural, tracers, RayBatch, Scene, Stats, Tracer};
 use std::time::Instant;
 
@@ -98,7 +97,7 @@ fn run() -> Res<()> {
             let rays = if a == 1 {
                 cam.rays(w, h)
             } else {
-                pixel_samples(&cam, w, h, a)
+                cam.sample_rays(w, h, a, a as u64)
             };
             if let Some(path) = &export {
                 // The last sweep's rays, for the Embree peer (float32 (N, 8)).
@@ -126,38 +125,6 @@ fn run() -> Res<()> {
         }
         Ok(())
     })
-}
-
-/// `a×a` stratified jittered samples per pixel, pixel-major (the distribution renderer's).
-fn pixel_samples(cam: &Camera, w: u32, h: u32, a: u32) -> RayBatch {
-    let (right, up, fwd) = cam.basis();
-    let tan = (cam.fov_deg.to_radians() * 0.5).tan();
-    let (wf, hf) = (w as f32, h as f32);
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(a as u64);
-    let mut b = RayBatch::with_capacity((w * h * a * a) as usize);
-    for j in 0..h {
-        for i in 0..w {
-            for s in 0..a * a {
-                let x = i as f32 + ((s % a) as f32 + rng.gen::<f32>()) / a as f32;
-                let y = j as f32 + ((s / a) as f32 + rng.gen::<f32>()) / a as f32;
-                let px = (2.0 * x / wf - 1.0) * tan * wf / hf;
-                let py = (1.0 - 2.0 * y / hf) * tan;
-                b.push(Ray {
-                    origin: cam.eye,
-                    dir: (px * right + py * up + fwd).normalize(),
-                    tmin: 0.0,
-                    tmax: f32::INFINITY,
-                });
-            }
-        }
-    }
-    b.layout = RayLayout::PixelSamples {
-        eye: cam.eye,
-        width: w,
-        height: h,
-        samples: a * a,
-    };
-    b
 }
 
 /// Times `kd` and `rtt` alternating, best of `repeat`, and prints the line.

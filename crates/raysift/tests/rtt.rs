@@ -45,38 +45,6 @@ fn camera(eye: Vec3, look: Vec3) -> Camera {
     }
 }
 
-/// `a×a` jittered stratified samples per pixel, pixel-major (as the distribution renderer).
-fn pixel_samples(cam: &Camera, w: u32, h: u32, a: u32, seed: u64) -> RayBatch {
-    let (right, up, fwd) = cam.basis();
-    let tan = (cam.fov_deg.to_radians() * 0.5).tan();
-    let (wf, hf) = (w as f32, h as f32);
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-    let mut b = RayBatch::with_capacity((w * h * a * a) as usize);
-    for j in 0..h {
-        for i in 0..w {
-            for s in 0..a * a {
-                let x = i as f32 + ((s % a) as f32 + rng.gen::<f32>()) / a as f32;
-                let y = j as f32 + ((s / a) as f32 + rng.gen::<f32>()) / a as f32;
-                let px = (2.0 * x / wf - 1.0) * tan * wf / hf;
-                let py = (1.0 - 2.0 * y / hf) * tan;
-                b.push(Ray {
-                    origin: cam.eye,
-                    dir: (px * right + py * up + fwd).normalize(),
-                    tmin: 0.0,
-                    tmax: f32::INFINITY,
-                });
-            }
-        }
-    }
-    b.layout = RayLayout::PixelSamples {
-        eye: cam.eye,
-        width: w,
-        height: h,
-        samples: a * a,
-    };
-    b
-}
-
 #[test]
 fn sphere_image_is_answered_mostly_from_lists() {
     let scene = procedural::icosphere(1280);
@@ -131,7 +99,7 @@ fn antialiased_tiles() {
     let scene = procedural::icosphere(1280);
     let cam = camera(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO);
     for a in 2..=6 {
-        let rays = pixel_samples(&cam, 48, 32, a, a as u64);
+        let rays = cam.sample_rays(48, 32, a, a as u64);
         let (c, _) = check(&scene, &rays);
         assert_eq!(c.get("tiles"), 12 * 8, "{a}x{a}");
         // (4a)² rays per tile, 4 of them corners.

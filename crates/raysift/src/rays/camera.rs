@@ -97,6 +97,50 @@ impl Camera {
         (x * right + y * up + forward).normalize()
     }
 
+    /// `a × a` stratified samples per pixel of a `w × h` image, each jittered in its stratum
+    /// (seeded), pixel-major (ray `(j·w + i)·a² + s`, `s = sy·a + sx`), laid out as
+    /// `PixelSamples` (`a = 1`: one jittered ray per pixel, `Pinhole`).
+    pub fn sample_rays(&self, w: u32, h: u32, a: u32, seed: u64) -> RayBatch {
+        use rand::{Rng, SeedableRng};
+        let (right, up, fwd) = self.basis();
+        let tan = (self.fov_deg.to_radians() * 0.5).tan();
+        let (wf, hf) = (w as f32, h as f32);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        let n = (w * h * a * a) as usize;
+        let mut b = RayBatch::with_capacity(n);
+        for j in 0..h {
+            for i in 0..w {
+                for s in 0..a * a {
+                    let x = i as f32 + ((s % a) as f32 + rng.gen::<f32>()) / a as f32;
+                    let y = j as f32 + ((s / a) as f32 + rng.gen::<f32>()) / a as f32;
+                    let px = (2.0 * x / wf - 1.0) * tan * wf / hf;
+                    let py = (1.0 - 2.0 * y / hf) * tan;
+                    b.push(crate::rays::Ray {
+                        origin: self.eye,
+                        dir: (px * right + py * up + fwd).normalize(),
+                        tmin: 0.0,
+                        tmax: f32::INFINITY,
+                    });
+                }
+            }
+        }
+        b.layout = if a == 1 {
+            RayLayout::Pinhole {
+                eye: self.eye,
+                width: w,
+                height: h,
+            }
+        } else {
+            RayLayout::PixelSamples {
+                eye: self.eye,
+                width: w,
+                height: h,
+                samples: a * a,
+            }
+        };
+        b
+    }
+
     /// All primary rays of a `w × h` image, ordered `j·w + i`.
     pub fn rays(&self, w: u32, h: u32) -> RayBatch {
         let n = w as usize * h as usize;

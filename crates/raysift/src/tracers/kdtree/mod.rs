@@ -189,22 +189,7 @@ impl Tracer for KdTracer {
     }
 
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
-        let mut built = Built::default();
-        if scene.changes_since(self.stamp) != Change::None {
-            self.stamp = Stamp::default();
-            // Drop the old tree first so peak memory is one tree, not two.
-            self.tree = KdTree::default();
-            self.tree = KdTree::build(scene.triangles(), &self.cfg.build())?;
-            built.builds = 1;
-        }
-        self.stamp = scene.stamp();
-        let s = self.tree.shape();
-        built.nodes = (s.interior + s.leaves) as u64;
-        built.leaves = s.leaves as u64;
-        built.empty_leaves = s.empty_leaves as u64;
-        built.refs = s.refs as u64;
-        built.depth = self.tree.depth as u64;
-        Ok(Stats::prepared(&built, self.tree.bytes()))
+        prepare_tree(&mut self.tree, &mut self.stamp, &self.cfg.build(), scene)
     }
 
     fn intersect(
@@ -264,6 +249,31 @@ impl Tracer for KdTracer {
     fn bytes(&self) -> usize {
         self.tree.bytes()
     }
+}
+
+/// Rebuilds `tree` from `scene` when it changed since `stamp` (dropping the old tree first, so
+/// peak memory is one tree), and reports what it holds (the `kdtree` and `rtt` prepares).
+pub fn prepare_tree(
+    tree: &mut KdTree,
+    stamp: &mut Stamp,
+    cfg: &BuildConfig,
+    scene: &Scene,
+) -> Result<Stats> {
+    let mut built = Built::default();
+    if scene.changes_since(*stamp) != Change::None {
+        *stamp = Stamp::default();
+        *tree = KdTree::default();
+        *tree = KdTree::build(scene.triangles(), cfg)?;
+        built.builds = 1;
+    }
+    *stamp = scene.stamp();
+    let s = tree.shape();
+    built.nodes = (s.interior + s.leaves) as u64;
+    built.leaves = s.leaves as u64;
+    built.empty_leaves = s.empty_leaves as u64;
+    built.refs = s.refs as u64;
+    built.depth = tree.depth as u64;
+    Ok(Stats::prepared(&built, tree.bytes()))
 }
 
 crate::counters! {

@@ -72,11 +72,11 @@ mod tile;
 use crate::accel::kdtree::{BuildConfig, KdTree};
 use crate::error::{Error, Result};
 use crate::rays::{HitBatch, RayBatch, RayLayout, MISS};
-use crate::scene::{Change, Scene, Stamp};
+use crate::scene::{Scene, Stamp};
 use crate::tracer::{
     par_occlusion_chunks, par_ray_chunks, CostMut, CounterDocs, RayCost, Stats, Tracer,
 };
-use crate::tracers::kdtree::{Built, Counters as KdCounters};
+use crate::tracers::kdtree::{prepare_tree, Built, Counters as KdCounters};
 use crate::tracers::{OptionDoc, Preset};
 use tile::{Band, Ctx, Scratch};
 
@@ -295,7 +295,7 @@ impl Rtt {
                     samples: samples as usize,
                 }
             }
-            RayLayout::OriginGrids { side } if side >= 2 && n % (side * side) as usize == 0 => {
+            RayLayout::OriginGrids { side } if side >= 2 && n.is_multiple_of((side * side) as usize) => {
                 Plan::Grids {
                     side: side as usize,
                 }
@@ -407,21 +407,12 @@ impl Tracer for Rtt {
     }
 
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
-        let mut built = Built::default();
-        if scene.changes_since(self.stamp) != Change::None {
-            self.stamp = Stamp::default();
-            self.tree = KdTree::default();
-            self.tree = KdTree::build(scene.triangles(), &BuildConfig::default())?;
-            built.builds = 1;
-        }
-        self.stamp = scene.stamp();
-        let s = self.tree.shape();
-        built.nodes = (s.interior + s.leaves) as u64;
-        built.leaves = s.leaves as u64;
-        built.empty_leaves = s.empty_leaves as u64;
-        built.refs = s.refs as u64;
-        built.depth = self.tree.depth as u64;
-        Ok(Stats::prepared(&built, self.tree.bytes()))
+        prepare_tree(
+            &mut self.tree,
+            &mut self.stamp,
+            &BuildConfig::default(),
+            scene,
+        )
     }
 
     fn intersect(
