@@ -4,12 +4,12 @@
 use super::{Config, Counters};
 use crate::accel::kdtree::{KdTree, MAX_DEPTH};
 use crate::geom::shaft::{BoxPlanes, Shaft};
-use crate::geom::{intersect_triangle, Aabb};
+use crate::geom::{intersect_triangle, Aabb, TriFromOrigin};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
 use crate::tracers::kdtree::{walk, walk4, Best, Counters as KdCounters, StackEntry, Stacks};
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec3, Vec4};
 
 /// Rows of pixels sharing one origin, as laid out in the batch: ray `base + (j·width + i)·samples
 /// + k` is sample `k` of pixel `(i, j)`, `j < rows`.
@@ -51,6 +51,12 @@ pub struct Scratch {
     stack: [StackEntry; MAX_DEPTH],
     /// The corner packet's stacks.
     packet: Box<Stacks>,
+    /// List answers, per slot of `idx`.
+    best: Vec<Best>,
+    /// Slots still to answer.
+    pending: Vec<usize>,
+    /// The list's triangles prepared for the tile's origin (four rays per test).
+    tris: Vec<TriFromOrigin>,
 }
 
 impl Scratch {
@@ -63,6 +69,9 @@ impl Scratch {
             cells: Vec::with_capacity(MAX_DEPTH + 2),
             stack: [StackEntry::default(); MAX_DEPTH],
             packet: Box::default(),
+            best: Vec::with_capacity(rays),
+            pending: Vec::with_capacity(rays),
+            tris: Vec::with_capacity(max_list),
         }
     }
 
@@ -74,6 +83,9 @@ impl Scratch {
             + self.cells.capacity() * std::mem::size_of::<(u32, Aabb, BoxPlanes)>()
             + std::mem::size_of::<[StackEntry; MAX_DEPTH]>()
             + std::mem::size_of::<Stacks>()
+            + self.best.capacity() * std::mem::size_of::<Best>()
+            + self.pending.capacity() * 8
+            + self.tris.capacity() * std::mem::size_of::<TriFromOrigin>()
     }
 }
 
@@ -426,12 +438,13 @@ impl Ctx<'_> {
         c.tiles_listed += 1;
         c.list_len += s.list.len() as u64;
         let shared = (c.shaft_nodes - before.0, c.shaft_boxes - before.1);
+        self.list_answers::<ANY>(matches!(kind, Kind::Origin(_)), s);
         for n in 0..s.idx.len() {
             if s.done[n] {
                 continue;
             }
             let i = s.idx[n];
-            let best = self.test_list::<ANY>(i, &s.list);
+            let best = s.best[n];
             let len = s.list.len() as u64;
             c.list_tests += len;
             let (o, d) = (rays.origin(i), rays.dir(i));
@@ -454,6 +467,75 @@ impl Ctx<'_> {
                 emit(i, best);
             }
             s.done[n] = true;
+        }
+    }
+
+    /// The list's answer for every unanswered ray of the tile, into `s.best`. Rays from one
+    /// origin go four at a time through the list's triangles prepared for that origin
+    /// ([`TriFromOrigin`]: bit-identical to the shared test); others one at a time.
+    fn list_answers<const ANY: bool>(&self, one_origin: bool, s: &mut Scratch) {
+        let rays = self.rays;
+        s.best.clear();
+        s.best.resize(s.idx.len(), (f32::INFINITY, MISS, 0.0, 0.0));
+        s.pending.clear();
+        s.pending.extend((0..s.idx.len()).filter(|&n| !s.done[n]));
+        let Scratch {
+            idx,
+            list,
+            best,
+            pending,
+            tris,
+            ..
+        } = s;
+        if !one_origin || list.len() < 2 || pending.len() < 4 {
+            for &n in pending.iter() {
+                best[n] = self.test_list::<ANY>(idx[n], list);
+            }
+            return;
+        }
+        let o = rays.origin(idx[0]);
+        let dlow = pending
+            .iter()
+            .map(|&n| rays.dir(idx[n]).abs().max_element())
+            .fold(f32::INFINITY, f32::min);
+        let soup = self.soup;
+        tris.clear();
+        tris.extend(list.iter().map(|&p| {
+            let k = p as usize;
+            TriFromOrigin::new(o, soup.v0[k], soup.v1[k], soup.v2[k], dlow)
+        }));
+        for group in pending.chunks(4) {
+            let g = group.len();
+            let lane: [usize; 4] = std::array::from_fn(|k| idx[group[k.min(g - 1)]]);
+            let tmin = rays.tmin[lane[0]];
+            if lane.iter().any(|&i| rays.tmin[i] != tmin) {
+                for &n in group {
+                    best[n] = self.test_list::<ANY>(idx[n], list);
+                }
+                continue;
+            }
+            let d = [
+                Vec4::from_array(lane.map(|i| rays.dx[i])),
+                Vec4::from_array(lane.map(|i| rays.dy[i])),
+                Vec4::from_array(lane.map(|i| rays.dz[i])),
+            ];
+            let mut b: [Best; 4] = lane.map(|i| (rays.tmax[i], MISS, 0.0, 0.0));
+            let mut tmax = Vec4::from_array(b.map(|x| x.0));
+            for (tri, &p) in tris.iter().zip(list.iter()) {
+                let h = tri.intersect4(d, tmin, tmax);
+                let mut m = h.mask;
+                while m != 0 {
+                    let l = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if closer(h.t[l], p, b[l].0, b[l].1) {
+                        b[l] = (h.t[l], p, h.u[l], h.v[l]);
+                        tmax[l] = h.t[l];
+                    }
+                }
+            }
+            for (k, &n) in group.iter().enumerate() {
+                best[n] = b[k];
+            }
         }
     }
 
