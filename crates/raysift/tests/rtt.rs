@@ -303,6 +303,14 @@ fn bytes_are_the_kdtrees_and_options_are_checked() {
     kd.prepare(&scene).unwrap();
     rtt.prepare(&scene).unwrap();
     assert_eq!(rtt.bytes(), kd.bytes());
+    // Per-task scratch, nothing per ray: the same peak for a 4× larger image.
+    let cam = camera(Vec3::new(0.0, 0.3, 3.0), Vec3::ZERO);
+    let (_, small) = rtt.intersect_timed(&scene, &cam.rays(64, 48)).unwrap();
+    let (_, large) = rtt.intersect_timed(&scene, &cam.rays(128, 96)).unwrap();
+    assert_eq!(small.peak_bytes, large.peak_bytes);
+    assert!((16 << 10..48 << 10).contains(&small.peak_bytes), "{}", small.peak_bytes);
+    let (_, aa) = rtt.intersect_timed(&scene, &cam.sample_rays(32, 24, 6, 1)).unwrap();
+    assert!(aa.peak_bytes < 64 << 10, "{}", aa.peak_bytes);
     for bad in [
         ("tile", "1"),
         ("tile", "17"),
