@@ -21,9 +21,9 @@
 //! nowhere (random or bounce rays) fail the shaft fit and are traced ray by ray.
 //!
 //! **A tile** (`tile.rs`):
-//! 1. Its four corner rays (the outermost samples of its corner pixels) are traced through the
-//!    kd-tree one by one, giving their closest hits (skipped for any-hit queries when every ray of
-//!    the tile is a finite segment: shadow shafts need no corner rays).
+//! 1. Its four corner rays (the outermost samples of its corner pixels) walk the kd-tree as one
+//!    4-ray packet (`kdtree`'s `packet.rs`), giving their closest hits (skipped for any-hit
+//!    queries when every ray of the tile is a finite segment: shadow shafts need no corner rays).
 //! 2. A shaft is fitted around *all* the tile's directions (not only the corners: jittered
 //!    samples may lie outside the corners' pyramid), apex at the common origin, and capped at the
 //!    depth (along the mean direction) of the deepest corner hit grown by `cap_growth`, or of
@@ -35,7 +35,9 @@
 //!    every triangle of those leaves whose box it cannot rule out (the paper's five tests per
 //!    triangle: four sides and the cap; here against the triangle's box, see below): the
 //!    relevant-triangle list, sorted and deduplicated.
-//! 4. Every other ray of the tile tests only the list. Its answer is *proven* when it found a hit
+//! 4. Every other ray of the tile tests only the list (rays from one origin four at a time,
+//!    through the list's triangles prepared for that origin: `geom::TriFromOrigin`,
+//!    bit-identical to the shared test). Its answer is *proven* when it found a hit
 //!    no deeper than the cap (for any-hit: any hit), or no hit and its whole segment ends before
 //!    the cap; otherwise the ray is traced through the tree (a "fallback").
 //!
@@ -52,20 +54,20 @@
 //! inner rays use the triangles of the corners' leaves). That rule is not exact in general: a
 //! cell lying strictly inside the shaft but touched by no corner ray is missed (its triangles
 //! can be hit by inner rays only). So here a tile is *listed* (coherent) when (a) all its rays
-//! share one origin bit for bit, (b) the shaft fits (every direction within `acos(0.2)` of the
+//! share one origin bit for bit (image and grid tiles; segment and line groups need not), with
+//! `tmin >= 0`, (b) the shaft fits (every direction within `acos(0.2)` of the
 //! mean), and (c) the list holds at most `max_list` triangles; a listed tile's rays are then
 //! answered from the list where step 4 proves it. Corner rays that hit different triangles or
 //! different leaves do not unlist a tile; inner rays that see past the corners' depth fall back.
-//!
-//! Corner rays are walked as one 4-ray packet (`kdtree`'s `packet.rs`).
 //!
 //! **Counters** (the paper's Table 1): `list_rays / rays` is the share of rays answered without
 //! traversal, `list_len / tiles_listed` the mean list length, `nodes + leaves` the traversal
 //! steps of corner and fallback rays, `ray_tri + list_tests` the triangle tests. Measured in
 //! BENCHMARKS.md (§ RTT).
 //!
-//! **Memory**: the kd-tree's (8 bytes per node, 4 per reference); per chunk of rays a scratch of
-//! one tile's indices, the list and two stacks ([`Rtt::bytes`] is the tree's).
+//! **Memory**: the kd-tree's (8 bytes per node, 4 per reference; [`Rtt::bytes`] is the tree's);
+//! per parallel task a scratch of one tile's slots, the list and its prepared triangles, and
+//! three stacks, about 31 KiB (reported as `peak_bytes`), nothing per ray.
 
 mod tile;
 
@@ -86,8 +88,8 @@ use tile::{Band, Ctx, Scratch};
 pub struct Config {
     /// Tile side in pixels (2..=16). Default 4 (the paper's 4×4 tiles).
     pub tile: usize,
-    /// Longest relevant-triangle list a tile may use (0..=4096; 0 traces every ray through the
-    /// tree). Default 64.
+    /// Longest relevant-triangle list a tile may use (0..=4096; 0: only tiles whose shaft holds
+    /// no triangle answer rays from their list). Default 64.
     pub max_list: usize,
     /// Relative growth of the cap beyond the deepest corner hit (>= 0). Default 1e-3.
     pub cap_growth: f64,
@@ -142,7 +144,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     },
     OptionDoc {
         key: "max_list",
-        doc: "longest relevant-triangle list a tile uses (0..=4096; 0: every ray through the tree)",
+        doc: "longest relevant-triangle list a tile uses (0..=4096; 0: only empty shafts answer rays)",
     },
     OptionDoc {
         key: "cap_growth",
@@ -165,7 +167,7 @@ pub const PRESETS: &[Preset] = &[
         opts: &[("tile", "8"), ("max_list", "1024")],
     },
     Preset {
-        name: "no lists (every ray through the tree)",
+        name: "lists of 0 (only empty shafts answer)",
         opts: &[("max_list", "0")],
     },
     Preset {
@@ -276,7 +278,7 @@ impl Rtt {
             l => l,
         };
         match layout {
-            RayLayout::Pinhole { width, height, .. } if (width * height) as usize == n => {
+            RayLayout::Pinhole { width, height, .. } if width as usize * height as usize == n => {
                 Plan::Image {
                     width: width as usize,
                     height: height as usize,
@@ -295,7 +297,9 @@ impl Rtt {
                     samples: samples as usize,
                 }
             }
-            RayLayout::OriginGrids { side } if side >= 2 && n.is_multiple_of((side * side) as usize) => {
+            RayLayout::OriginGrids { side }
+                if side >= 2 && n.is_multiple_of((side * side) as usize) =>
+            {
                 Plan::Grids {
                     side: side as usize,
                 }
@@ -391,13 +395,14 @@ impl Rtt {
         c
     }
 
-    /// Bytes of one task's scratch for `rays` (reported as peak bytes).
+    /// Bytes of one task's scratch under `plan` (reported as peak bytes).
     fn scratch_bytes(&self, plan: Plan) -> usize {
-        let samples = match plan {
-            Plan::Image { samples, .. } => samples,
-            _ => 1,
+        let rays = match plan {
+            Plan::Image { samples, .. } => self.cfg.tile * self.cfg.tile * samples,
+            Plan::Grids { .. } => self.cfg.tile * self.cfg.tile,
+            Plan::Segments | Plan::Lines => self.cfg.segment_group,
         };
-        Scratch::new(self.cfg.tile * self.cfg.tile * samples, self.cfg.max_list).bytes()
+        Scratch::new(rays, self.cfg.max_list).bytes()
     }
 }
 
