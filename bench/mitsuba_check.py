@@ -1,16 +1,18 @@
 #!/usr/bin/env python3
 """Reference check of raysift's path tracer against Mitsuba 3 (variant scalar_rgb).
 
-Both render the Cornell box of assets/scenes/CornellBox-Original.obj (diffuse .mtl Kd, the
-ceiling light's Ke as a one-sided area emitter facing down) with the same camera (raysift's
+Both render the Cornell box of assets/scenes/CornellBox-Original.obj with raysift's model of it:
+the .mtl Kd reflected on both faces of every surface (Mitsuba's `twosided` around `diffuse`),
+the ceiling light's Ke emitted from both faces (in Mitsuba two one-sided emitters 0.1 mm apart,
+both reflecting the light's Kd), with the same camera (raysift's
 convention: vertical fov in degrees, look-at, pixel (i, j) from the top left), the same number
 of bounces and a box pixel filter. raysift writes linear radiance to .exr, so no tone mapping
 enters the comparison. Wall masks come from casting raysift's pixel-centre camera rays into
 Mitsuba's scene (shape -> material). The check: per-channel mean over the image and over each
 wall within TOL (2%); a difference image is written for a person to look at.
 
-Usage: python3 bench/mitsuba_check.py [--raysift target/release/raysift] [--size 128]
-       [--spp 256] [--out docs/mitsuba-check.png]
+Usage: python3 bench/mitsuba_check.py [--raysift target/release/raysift] [--size 64]
+       [--spp 4096] [--seed 1] [--out docs/mitsuba-check.png]
 Needs: pip install mitsuba numpy
 """
 
@@ -81,7 +83,9 @@ def mitsuba_scene(mi, files, mats, size, spp, bounces):
         s = {
             "type": "obj",
             "filename": f,
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": mats[m]["Kd"]}},
+            # raysift's surfaces reflect on both faces; Mitsuba's diffuse BSDF on the front only.
+            "bsdf": {"type": "twosided", "bsdf": {
+                "type": "diffuse", "reflectance": {"type": "rgb", "value": mats[m]["Kd"]}}},
         }
         if max(mats[m]["Ke"]) > 0:
             s["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": mats[m]["Ke"]}}
@@ -97,8 +101,9 @@ def mitsuba_scene(mi, files, mats, size, spp, bounces):
                     if w and w[0] == "v":
                         line = "v %f %f %f\n" % (float(w[1]), float(w[2]) + 1e-4, float(w[3]))
                     dst.write(line)
-            shapes[m + "_back"] = dict(s, filename=back, flip_normals=not s["flip_normals"],
-                                       bsdf={"type": "diffuse", "reflectance": {"type": "rgb", "value": [0, 0, 0]}})
+            # The copy reflects like the light (Kd) too: between the light's top and the
+            # ceiling 1 cm above it light bounces many times, and raysift's light reflects there.
+            shapes[m + "_back"] = dict(s, filename=back, flip_normals=not s["flip_normals"])
         shapes[m] = s
     return mi.load_dict(
         {
@@ -148,8 +153,9 @@ def masks(mi, scene, size):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--raysift", default=os.path.join(ROOT, "target", "release", "raysift"))
-    ap.add_argument("--size", type=int, default=128)
-    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=4096)
+    ap.add_argument("--seed", type=int, default=1, help="seed of both renderers")
     ap.add_argument("--bounces", type=int, default=5)
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "mitsuba-check.png"))
     a = ap.parse_args()
@@ -162,7 +168,7 @@ def main():
         a.raysift, "render", OBJ, "--integrator", "path", "--spp", str(a.spp),
         "--bounces", str(a.bounces), "--width", str(a.size), "--height", str(a.size),
         "--eye", ",".join(map(str, EYE)), "--look", ",".join(map(str, LOOK)),
-        "--fov", str(FOV), "--out", rs_exr, "--json", "--quiet",
+        "--fov", str(FOV), "--seed", str(a.seed), "--out", rs_exr, "--json", "--quiet",
     ]
     rep = json.loads(subprocess.run(cmd, check=True, capture_output=True).stdout)
     print(f"raysift: {rep['rays']} rays, {rep['trace_ms']:.0f} ms of tracing")
@@ -171,7 +177,7 @@ def main():
     mats = read_mtl(MTL)
     files = split_obj(OBJ, tmp)
     scene = mitsuba_scene(mi, files, mats, a.size, a.spp, a.bounces)
-    ref = np.array(mi.render(scene), dtype=np.float64)[..., :3]
+    ref = np.array(mi.render(scene, seed=a.seed), dtype=np.float64)[..., :3]
     mi.Bitmap(ref.astype(np.float32)).write(os.path.join(tmp, "mitsuba.exr"))
     # Mitsuba merges meshes of equal BSDFs into one shape: the masks come from a copy of the
     # scene whose materials are all different.

@@ -39,6 +39,10 @@ pub struct RenderArgs {
     /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
     #[arg(long)]
     pub(crate) bounces: Option<u32>,
+    /// Path tracing: plain next-event estimation, without multiple importance sampling of the
+    /// lights that bounce rays hit (the same image in expectation, noisier next to lights).
+    #[arg(long)]
+    pub(crate) no_mis: bool,
     /// Random seed (path, distribution): the same seed gives the same image, whatever the
     /// thread count and the tracer [default: 1].
     #[arg(long)]
@@ -152,6 +156,9 @@ fn check(a: &RenderArgs) -> Result<()> {
     }
     let dist = a.integrator == Integrator::Distribution;
     let ir = a.integrator == Integrator::InstantRadiosity;
+    if a.no_mis && a.integrator != Integrator::Path {
+        bail!("--no-mis applies to --integrator path only");
+    }
     for (given, flag) in [
         (a.vpls.is_some(), "--vpls"),
         (a.vpl_bounces.is_some(), "--vpl-bounces"),
@@ -431,6 +438,7 @@ fn render_scene(
             spp: a.spp.unwrap_or(defaults.spp),
             bounces: a.bounces.unwrap_or(defaults.bounces),
             seed: a.seed.unwrap_or(defaults.seed),
+            mis: !a.no_mis,
             ..defaults
         };
         let (rad, per_depth) = render::path::path_trace_lit(&s, tracer, &cam, w, h, &cfg, &lights)?;

@@ -537,6 +537,10 @@ fn render_light_and_integrator_errors_write_nothing() {
     run(&dist, "needs a light");
     run(&[&dist[..], &["--spp", "4"]].concat(), "--spp");
     run(&["--aa", "2"], "--aa applies to --integrator distribution");
+    run(
+        &[&dist[..], &["--no-mis"]].concat(),
+        "--no-mis applies to --integrator path only",
+    );
     run(&["--seed", "2"], "--seed");
     run(
         &["--vpls", "10"],

@@ -100,6 +100,9 @@ pub struct Lights {
     /// The lights.
     pub lights: Vec<AreaLight>,
     cdf: Vec<f32>,
+    /// The scene's primitive ranges that are lights: (first, end, light index), sorted. Rays can
+    /// hit these lights; the user's square lights are not geometry and are absent here.
+    prims: Vec<(u32, u32, usize)>,
 }
 
 impl Lights {
@@ -107,13 +110,19 @@ impl Lights {
     /// material) followed by `extra`.
     pub fn new(scene: &Scene, extra: Vec<AreaLight>) -> Self {
         let soup = scene.triangles();
-        let mut lights: Vec<AreaLight> = scene
-            .material_runs()
-            .filter_map(|(range, m)| {
-                let m = m.filter(|m| m.is_emissive())?;
-                AreaLight::from_triangles(range.map(|i| soup.get(i)).collect(), m.emission)
-            })
-            .collect();
+        let mut lights = Vec::new();
+        let mut prims = Vec::new();
+        for (range, m) in scene.material_runs() {
+            let Some(m) = m.filter(|m| m.is_emissive()) else {
+                continue;
+            };
+            let (a, b) = (range.start as u32, range.end as u32);
+            let tris = range.map(|i| soup.get(i)).collect();
+            if let Some(l) = AreaLight::from_triangles(tris, m.emission) {
+                prims.push((a, b, lights.len()));
+                lights.push(l);
+            }
+        }
         lights.extend(extra);
         let total: f32 = lights.iter().map(AreaLight::power).sum();
         let mut acc = 0.0;
@@ -124,7 +133,39 @@ impl Lights {
                 acc
             })
             .collect();
-        Self { lights, cdf }
+        Self { lights, cdf, prims }
+    }
+
+    /// The light that primitive `prim` of the scene belongs to, if it is one.
+    #[inline]
+    pub fn of_primitive(&self, prim: u32) -> Option<usize> {
+        let k = self.prims.partition_point(|&(_, end, _)| end <= prim);
+        self.prims
+            .get(k)
+            .filter(|&&(start, _, _)| start <= prim)
+            .map(|&(_, _, l)| l)
+    }
+
+    /// True when light `k` is scene geometry, so that rays can hit it (not a user's square).
+    #[inline]
+    pub fn is_geometry(&self, k: usize) -> bool {
+        // The scene's lights come first, in the order of `prims`.
+        k < self.prims.len()
+    }
+
+    /// The probability that [`Lights::pick`] chooses light `k`.
+    #[inline]
+    pub fn probability(&self, k: usize) -> f32 {
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        (self.cdf[k] - lo).max(1e-30)
+    }
+
+    /// The solid-angle density with which [`Lights::pick`] and [`AreaLight::sample`] choose the
+    /// direction from a point to a point of light `k` at distance `dist`, whose normal makes
+    /// `|cos_light|` with the direction: `p(k) / area · dist² / |cos_light|`.
+    #[inline]
+    pub fn solid_angle_pdf(&self, k: usize, dist: f32, cos_light: f32) -> f32 {
+        self.probability(k) / self.lights[k].area * dist * dist / cos_light.abs().max(1e-30)
     }
 
     /// The scene's own lights.
@@ -146,7 +187,7 @@ impl Lights {
             .partition_point(|&c| c <= u)
             .min(self.lights.len() - 1);
         let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
-        let p = (self.cdf[k] - lo).max(1e-30);
+        let p = self.probability(k);
         (k, p, ((u - lo) / p).clamp(0.0, 1.0 - f32::EPSILON))
     }
 }
@@ -164,6 +205,24 @@ pub fn geometry_term(x: Vec3, nx: Vec3, y: Vec3, ny: Vec3, le: Vec3) -> Vec3 {
         return Vec3::ZERO;
     }
     le * (cx * ny.dot(w).abs() / d2)
+}
+
+/// The power heuristic (β = 2) weight of a strategy of density `a` against one of density `b`
+/// (Veach 1997): `a² / (a² + b²)`; 1 when `b` is zero, 0 when `a` is.
+#[inline]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if b2 == 0.0 {
+        1.0
+    } else if !a2.is_finite() {
+        if b2.is_finite() {
+            1.0
+        } else {
+            0.5
+        }
+    } else {
+        a2 / (a2 + b2)
+    }
 }
 
 /// A shadow ray from `o` to `y`: direction `y − o` (the light at t = 1), ending just short of it

@@ -8,16 +8,20 @@
 //! Lighting: when the scene has area lights (emissive materials, or lights passed to
 //! [`path_trace_lit`]) the background is black and every diffuse vertex does **next-event
 //! estimation**: one shadow ray to a point chosen on a light (light by power, point uniform by
-//! area), all of one bounce's shadow rays traced as one any-hit batch. Plain NEE, no MIS: a
-//! light's emission is counted only where NEE cannot see it, on camera rays and after mirror
-//! bounces, so nothing is counted twice; for diffuse surfaces and area lights MIS would only
-//! lower variance near small bright lights, at the cost of a BSDF-ray light lookup per hit.
+//! area), all of one bounce's shadow rays traced as one any-hit batch. The light a diffuse
+//! bounce ray hits is counted too, and the two are combined by **multiple importance sampling**
+//! (power heuristic, Veach 1997): without it, surfaces close to a light (the Cornell box's
+//! ceiling 1 cm above its light) get rare huge shadow-ray contributions and the image converges
+//! several times slower (BENCHMARKS.md, "Mitsuba reference check"). Camera rays and rays after a
+//! mirror count the emission they hit in full (no shadow ray can reach them); the last vertex's
+//! shadow ray counts in full (no bounce ray follows it); the user's square lights are not
+//! geometry, so their shadow rays count in full.
 //! Without lights the scene is lit by a sky (white above the horizon, darker below), as before.
 //! The random numbers of a path vertex come from (seed, sample, depth, pixel), so the image does
 //! not depend on the thread count or on the tracer. The renderer sees only the [`Tracer`]
 //! contract, so it runs with every tracer.
 
-use super::light::{geometry_term, shadow_ray, Lights};
+use super::light::{geometry_term, power_heuristic, shadow_ray, Lights};
 use super::Image;
 use crate::error::{Error, Result};
 use crate::rays::{generate, Camera, HitBatch, Ray, RayBatch};
@@ -38,6 +42,10 @@ pub struct PathConfig {
     pub albedo: f32,
     /// Random seed.
     pub seed: u64,
+    /// Multiple importance sampling of shadow rays and bounce rays that find a light (default
+    /// on); off, lights are found by shadow rays only (plain next-event estimation: the same
+    /// image in expectation, noisier next to lights).
+    pub mis: bool,
 }
 
 impl Default for PathConfig {
@@ -47,6 +55,7 @@ impl Default for PathConfig {
             bounces: 7,
             albedo: 0.7,
             seed: 1,
+            mis: true,
         }
     }
 }
@@ -226,11 +235,12 @@ fn jittered_primary_window(
     b
 }
 
-/// What one path vertex gives: radiance to add now, the next ray, and a shadow ray with the
+/// What one path vertex gives: radiance to add now, the next ray (with its throughput and the
+/// solid-angle density it was sampled with, +∞ for a mirror's), and a shadow ray with the
 /// radiance it carries if unblocked.
 struct Vertex {
     add: Vec3,
-    next: Option<(Ray, Vec3, bool)>,
+    next: Option<(Ray, Vec3, f32)>,
     shadow: Option<(Ray, Vec3)>,
 }
 
@@ -279,8 +289,9 @@ pub fn path_trace_lit_window(
         let mut rays = jittered_primary_window(camera, width, height, win, cfg.seed, s);
         let mut pixel: Vec<u32> = (0..n as u32).collect();
         let mut throughput = vec![Vec3::ONE; n];
-        // Camera rays and mirror bounces see emission (NEE does not cover them).
-        let mut specular = vec![true; n];
+        // The density each ray was sampled with: +∞ for camera rays and mirror bounces, which
+        // count the emission they hit in full (no shadow ray covers them).
+        let mut ray_pdf = vec![f32::INFINITY; n];
         let mut hits = HitBatch::new(0);
         for depth in 0..=cfg.bounces {
             if rays.is_empty() {
@@ -312,8 +323,18 @@ pub fn path_trace_lit_window(
                     }
                     let prim = hits.prim[i];
                     let m = scene.material(prim).unwrap_or(&default);
-                    let add = if specular[i] {
+                    let add = if !m.is_emissive() {
+                        Vec3::ZERO
+                    } else if ray_pdf[i] == f32::INFINITY {
                         tp * m.emission
+                    } else if let Some(k) = lights.of_primitive(prim).filter(|_| cfg.mis) {
+                        // A bounce ray found a light the previous vertex's shadow ray could
+                        // also have chosen: weigh the two.
+                        let d = rays.dir(i);
+                        let len = d.length();
+                        let cos_light = scene.normal(prim as usize).dot(d / len);
+                        let pl = lights.solid_angle_pdf(k, hits.t[i] * len, cos_light);
+                        tp * m.emission * power_heuristic(ray_pdf[i], pl)
                     } else {
                         Vec3::ZERO
                     };
@@ -332,7 +353,7 @@ pub fn path_trace_lit_window(
                                     tmax: f32::INFINITY,
                                 },
                                 tp * m.diffuse,
-                                true,
+                                f32::INFINITY,
                             )
                         });
                         return Vertex {
@@ -348,12 +369,22 @@ pub fn path_trace_lit_window(
                             let l = &lights.lights[k];
                             let (y, ny) = l.sample(u, rng.gen());
                             let g = geometry_term(o, nrm, y, ny, l.radiance);
-                            let c = f * std::f32::consts::FRAC_1_PI * g * (l.area / pl);
+                            let mut c = f * std::f32::consts::FRAC_1_PI * g * (l.area / pl);
+                            if cfg.mis && !last && lights.is_geometry(k) && c.max_element() > 0.0 {
+                                // The bounce ray could have found this point too.
+                                let d = y - o;
+                                let dist = d.length();
+                                let w = d / dist;
+                                let pl = lights.solid_angle_pdf(k, dist, ny.dot(w));
+                                let pb = nrm.dot(w).max(0.0) * std::f32::consts::FRAC_1_PI;
+                                c *= power_heuristic(pl, pb);
+                            }
                             (shadow_ray(o, y), c)
                         })
                         .filter(|(_, c)| c.max_element() > 0.0);
                     let next = (!last).then(|| {
                         let dir = generate::cosine_direction(nrm, rng.gen(), rng.gen());
+                        let pdf = nrm.dot(dir).max(0.0) * std::f32::consts::FRAC_1_PI;
                         (
                             Ray {
                                 origin: o,
@@ -362,24 +393,24 @@ pub fn path_trace_lit_window(
                                 tmax: f32::INFINITY,
                             },
                             f,
-                            false,
+                            pdf,
                         )
                     });
                     Vertex { add, next, shadow }
                 })
                 .collect();
             let mut next = RayBatch::with_capacity(verts.len());
-            let (mut next_pixel, mut next_tp, mut next_spec) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut next_pixel, mut next_tp, mut next_pdf) = (Vec::new(), Vec::new(), Vec::new());
             let mut shadows = RayBatch::with_capacity(verts.len());
             let mut carried = Vec::new();
             for (i, v) in verts.into_iter().enumerate() {
                 let px = pixel[i];
                 sum[px as usize] += v.add;
-                if let Some((r, t, sp)) = v.next {
+                if let Some((r, t, pdf)) = v.next {
                     next.push(r);
                     next_pixel.push(px);
                     next_tp.push(t);
-                    next_spec.push(sp);
+                    next_pdf.push(pdf);
                 }
                 if let Some((r, c)) = v.shadow {
                     shadows.push(r);
@@ -400,7 +431,7 @@ pub fn path_trace_lit_window(
             rays = next;
             pixel = next_pixel;
             throughput = next_tp;
-            specular = next_spec;
+            ray_pdf = next_pdf;
         }
     }
     for b in &mut per_depth {
