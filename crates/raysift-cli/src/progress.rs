@@ -53,8 +53,9 @@ pub enum Plan {
     Path { spp: u32, bounces: u32, pixels: u64 },
     /// Distribution: camera rays, then about `per_hit` rays for each camera hit.
     Distribution { per_hit: u64 },
-    /// Instant radiosity: photons, camera rays, then `subset` shadow rays per camera hit.
-    Radiosity { subset: u64 },
+    /// Instant radiosity: photons, then per sample camera rays and `subset` shadow rays per
+    /// camera hit.
+    Radiosity { subset: u64, spp: u32 },
 }
 
 #[derive(Default)]
@@ -151,15 +152,19 @@ impl RenderBar {
                     .into();
                 }
             }
-            Plan::Radiosity { subset } => {
+            Plan::Radiosity { subset, spp } => {
                 if c.camera && intersect {
-                    s.seen_camera = true;
-                    s.total = s.rays + c.hits * subset;
-                    s.phase = "camera".into();
+                    if !s.seen_camera {
+                        // The photons so far, and every sample like the first.
+                        s.seen_camera = true;
+                        s.total = s.rays - c.rays + spp as u64 * (c.rays + c.hits * subset);
+                    }
+                    s.sample += 1;
+                    s.phase = format!("sample {}/{spp}, camera", s.sample);
                 } else if intersect {
                     s.phase = "photons".into();
                 } else {
-                    s.phase = "shadow".into();
+                    s.phase = format!("sample {}/{spp}, shadow", s.sample);
                 }
             }
         }

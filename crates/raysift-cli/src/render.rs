@@ -33,7 +33,8 @@ pub struct RenderArgs {
     /// Integrator: raycast (one ray per pixel, shaded) or path (diffuse path tracing under a sky).
     #[arg(long, value_enum, default_value_t = Integrator::Raycast)]
     pub(crate) integrator: Integrator,
-    /// Path tracing: samples per pixel, at least 1 [default: 4].
+    /// Path tracing and instant radiosity: samples per pixel, at least 1 [default: 4 for path,
+    /// 1 for instant radiosity].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub(crate) spp: Option<u32>,
     /// Path tracing: bounces after the primary hit, no Russian roulette [default: 7].
@@ -173,7 +174,6 @@ fn check(a: &RenderArgs) -> Result<()> {
             (a.heatmap.is_some(), "--heatmap"),
             (a.shade.is_some(), "--shade"),
             (a.light.is_some(), "--light (use --area-light)"),
-            (a.spp.is_some(), "--spp"),
             (a.bounces.is_some(), "--bounces (use --vpl-bounces)"),
         ] {
             if given {
@@ -227,13 +227,11 @@ fn check(a: &RenderArgs) -> Result<()> {
             bail!("--light applies to ray casting with --shade diffuse, not to --integrator path (use --area-light)");
         }
     } else {
-        for (given, flag) in [
-            (a.spp.is_some(), "--spp"),
-            (a.bounces.is_some(), "--bounces"),
-        ] {
-            if given {
-                bail!("{flag} applies to --integrator path only");
-            }
+        if a.spp.is_some() && !ir {
+            bail!("--spp applies to --integrator path or instant-radiosity only");
+        }
+        if a.bounces.is_some() {
+            bail!("--bounces applies to --integrator path only");
         }
         if a.light.is_some() && a.shade.is_some_and(|s| s != Shade::Diffuse) {
             bail!("--light applies to --shade diffuse only");
@@ -327,6 +325,7 @@ fn render_scene(
                 .vpl_subset
                 .unwrap_or(render::radiosity::IrConfig::default().subset)
                 as u64,
+            spp: a.spp.unwrap_or(1),
         },
     };
     let bar = RenderBar::new(plan);
@@ -388,6 +387,7 @@ fn render_scene(
             bounces: a.vpl_bounces.unwrap_or(d.bounces),
             subset: a.vpl_subset.unwrap_or(d.subset),
             seed: a.seed.unwrap_or(d.seed),
+            spp: a.spp.unwrap_or(d.spp),
             ..d
         };
         let (rad, nv, phases) =
@@ -403,7 +403,7 @@ fn render_scene(
             &phases,
             serde_json::json!({
                 "integrator": "instant-radiosity", "vpls": nv, "vpl_bounces": cfg.bounces,
-                "vpl_subset": cfg.subset, "lights": lights.lights.len(),
+                "vpl_subset": cfg.subset, "spp": cfg.spp, "lights": lights.lights.len(),
             }),
         );
     }

@@ -461,6 +461,55 @@ fn path_tracing_reports_every_bounce() {
     assert!(std::fs::metadata(&out).unwrap().len() > 100);
 }
 
+#[test]
+fn instant_radiosity_takes_samples_per_pixel() {
+    let d = tmp();
+    let out = p(d.path(), "ir.exr");
+    let obj = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/scenes/CornellBox-Original.obj"
+    );
+    let run = |spp: &str| {
+        let o = ok(&[
+            "render",
+            obj,
+            "--integrator",
+            "instant-radiosity",
+            "--vpls",
+            "40",
+            "--vpl-subset",
+            "8",
+            "--spp",
+            spp,
+            "--width",
+            "12",
+            "--height",
+            "10",
+            "--out",
+            &out,
+            "--json",
+        ]);
+        json(&o)
+    };
+    let (one, three) = (run("1"), run("3"));
+    assert_eq!(three["spp"], 3);
+    let hits = |v: &serde_json::Value| v["phase_hits"]["camera"].as_u64().unwrap();
+    let rays = |v: &serde_json::Value, pass: &str| {
+        let passes = v["passes"].as_array().unwrap();
+        let p = passes.iter().find(|p| p["pass"] == pass).unwrap();
+        p["rays"].as_u64().unwrap()
+    };
+    // Photons once; camera rays and shadow rays once per sample.
+    assert_eq!(rays(&one, "camera"), 120);
+    assert_eq!(rays(&three, "camera"), 360);
+    assert_eq!(rays(&three, "shadow"), 8 * hits(&three));
+    assert_eq!(
+        rays(&three, "photon emission"),
+        rays(&one, "photon emission")
+    );
+    assert!(std::fs::metadata(&out).unwrap().len() > 100);
+}
+
 // ---- What a new user ran into (issue 12, item 6): each of these failed before the fix.
 
 /// Width and height of a PNG, from its IHDR chunk.
