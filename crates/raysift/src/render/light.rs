@@ -242,6 +242,18 @@ mod tests {
     use super::*;
 
     #[test]
+    fn power_heuristic_weights_sum_to_one() {
+        for (a, b) in [(1.0f32, 1.0f32), (0.3, 80.0), (5.0, 0.01), (1e-20, 1e-20)] {
+            let s = power_heuristic(a, b) + power_heuristic(b, a);
+            assert!((s - 1.0).abs() < 1e-6, "{a} {b}: {s}");
+        }
+        assert_eq!(power_heuristic(f32::INFINITY, 2.0), 1.0);
+        assert_eq!(power_heuristic(2.0, f32::INFINITY), 0.0);
+        assert_eq!(power_heuristic(2.0, 0.0), 1.0);
+        assert_eq!(power_heuristic(0.0, 2.0), 0.0);
+    }
+
+    #[test]
     fn samples_cover_the_light_uniformly() {
         let l = AreaLight::square(Vec3::new(0.0, 2.0, 0.0), 2.0, 10.0, "--area-light").unwrap();
         assert!((l.area - 4.0).abs() < 1e-6);

@@ -1,0 +1,152 @@
+#!/usr/bin/env python3
+"""Release-build tables of the renderer issue (#13), every tracer, contenders alternated.
+
+  table4     RTRPS Table 4's ray counts on the bunny: 256², one square light, 16×16 shadow
+             samples per primary hit (distribution ray tracing; shadow rays = 256 × hits).
+  ir         instant radiosity at 1K/10K/40K VPLs (1 and 3 photon bounces) on the Cornell box
+             and Sponza: rays and Mrays/s per phase.
+  brainstem  per-frame animation, prepare and trace of BrainStem.glb's clip, 60 frames.
+
+Each part runs `--rounds` rounds; within a round every tracer runs once, in rotated order, and
+the tables give medians over rounds. Prints Markdown tables (and the commands) to stdout.
+
+Usage: python3 bench/renderers.py [--raysift target/release/raysift] [--shared ../shared]
+       [--rounds 3] [--parts table4,ir,brainstem]
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TRACERS = ["bvh", "dacrt", "dacrt5d", "kdtree", "rtt", "rtrps"]
+
+
+def run(cmd):
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def rounds(n, tracers, job):
+    """{tracer: [result per round]}, the order rotated each round."""
+    res = {t: [] for t in tracers}
+    for r in range(n):
+        order = tracers[r % len(tracers):] + tracers[: r % len(tracers)]
+        for t in order:
+            res[t].append(job(t))
+            print(f"  round {r + 1} {t}", file=sys.stderr)
+    return res
+
+
+def med(xs):
+    return statistics.median(xs)
+
+
+def passes(v):
+    return {p["pass"]: p for p in v["passes"]}
+
+
+def table4(a):
+    bunny = os.path.join(a.shared, "scenes", "bun_zipper.ply")
+    base = [a.raysift, "render", bunny, "--integrator", "distribution", "--width", "256",
+            "--height", "256", "--light-samples", "16", "--area-light", "-0.017,0.35,0.0,0.05,1",
+            "--json", "--quiet", "--out", "/tmp/renderers-bunny.png"]
+    print("```\n" + " ".join(base[1:]) + " --tracer T\n```\n")
+    res = rounds(a.rounds, TRACERS, lambda t: run(base + ["--tracer", t]))
+    print("| tracer | primary rays | primary hits | shadow rays | = 256 × hits | prepare ms | primary ms "
+          "| shadow ms | shadow Mrays/s |")
+    print("|---|---:|---:|---:|---|---:|---:|---:|---:|")
+    for t in TRACERS:
+        vs = res[t]
+        p0 = passes(vs[0])
+        hits, sh = vs[0]["phase_hits"]["primary"], p0["shadow"]["rays"]
+        shadow_ms = med([passes(v)["shadow"]["trace_ms"] for v in vs])
+        print(f"| {t} | {p0['primary']['rays']:,} | {hits:,} | {sh:,} | "
+              f"{'yes' if sh == 256 * hits else 'NO'} | {med([v['prepare_ms'] for v in vs]):.0f} | "
+              f"{med([passes(v)['primary']['trace_ms'] for v in vs]):.1f} | {shadow_ms:.0f} | "
+              f"{sh / shadow_ms / 1e3:.2f} |")
+    print()
+
+
+def ir(a):
+    scenes = [("Cornell box", os.path.join(ROOT, "assets", "scenes", "CornellBox-Original.obj"), []),
+              ("Sponza", os.path.join(a.shared, "scenes", "sponza.obj.gz"),
+               ["--area-light", "0,12,0,2,2000"])]
+    for name, path, extra in scenes:
+        for vpls in (1000, 10000, 40000):
+            for b in (1, 3):
+                base = [a.raysift, "render", path, "--integrator", "instant-radiosity", "--width",
+                        "128", "--height", "128", "--vpls", str(vpls), "--vpl-bounces", str(b),
+                        "--vpl-subset", "64", "--json", "--quiet", "--out",
+                        "/tmp/renderers-ir.png"] + extra
+                tr = (["naive"] if name == "Cornell box" else []) + TRACERS
+                res = rounds(a.rounds, tr, lambda t: run(base + ["--tracer", t]))
+                v0 = res[tr[0]][0]
+                p0 = passes(v0)
+                rays = {k: p0[k]["rays"] if k in p0 else 0
+                        for k in ("photon emission", "photon bounces", "camera", "shadow")}
+                print(f"**{name}, {vpls:,} VPLs asked / {v0['vpls']:,} made, {b} photon "
+                      f"bounce{'s' if b > 1 else ''}**: rays per phase " +
+                      ", ".join(f"{k} {r:,}" for k, r in rays.items()) +
+                      f" (`{' '.join(base[1:])} --tracer T`)\n")
+                print("| tracer | prepare ms | " + " | ".join(f"{k} Mrays/s" for k in rays) +
+                      " | total trace ms |")
+                print("|---|---:|" + "---:|" * len(rays) + "---:|")
+                for t in tr:
+                    vs = res[t]
+                    cells = []
+                    for k, r in rays.items():
+                        if r == 0:
+                            cells.append("—")
+                            continue
+                        ms = med([passes(v)[k]["trace_ms"] for v in vs])
+                        cells.append(f"{r / max(ms, 1e-6) / 1e3:.2f}")
+                    print(f"| {t} | {med([v['prepare_ms'] for v in vs]):.0f} | " + " | ".join(cells) +
+                          f" | {med([v['trace_ms'] for v in vs]):.0f} |")
+                print()
+
+
+def brainstem(a):
+    glb = os.path.join(a.shared, "scenes", "animated", "BrainStem.glb")
+    base = [a.raysift, "animate", glb, "--frames", "60", "--width", "320", "--height", "240",
+            "--no-images", "--json", "--quiet"]
+    print("```\n" + " ".join(base[1:]) + " --tracer T [--opt update=U]\n```\n")
+    configs = {"bvh update=rebuild": ["--tracer", "bvh", "--opt", "update=rebuild"],
+               "bvh update=refit": ["--tracer", "bvh", "--opt", "update=refit"],
+               "bvh update=auto": ["--tracer", "bvh", "--opt", "update=auto"]}
+    configs.update({t: ["--tracer", t] for t in TRACERS if t != "bvh"})
+    names = list(configs)
+    res = rounds(a.rounds, names, lambda t: run(base + configs[t]))
+    print("| tracer | animation ms | prepare ms | trace ms | prepare + trace ms |")
+    print("|---|---:|---:|---:|---:|")
+    for t in names:
+        vs = res[t]
+        u, p, tr = (med([v[k] for v in vs]) for k in ("mean_update_ms", "mean_prepare_ms",
+                                                       "mean_trace_ms"))
+        print(f"| {t} | {u:.1f} | {p:.1f} | {tr:.1f} | {med([v['mean_prepare_ms'] + v['mean_trace_ms'] for v in vs]):.1f} |")
+    print()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--raysift", default=os.path.join(ROOT, "target", "release", "raysift"))
+    ap.add_argument("--shared", default=os.path.join(ROOT, "..", "shared"))
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--parts", default="table4,ir,brainstem")
+    a = ap.parse_args()
+    parts = {"table4": table4, "ir": ir, "brainstem": brainstem}
+    for p in a.parts.split(","):
+        if p not in parts:
+            ap.error(f"--parts: unknown part {p!r} (table4, ir, brainstem)")
+    for p in a.parts.split(","):
+        print(f"### {p}\n")
+        sys.stdout.flush()
+        parts[p](a)
+        sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
