@@ -458,3 +458,88 @@ fn path_windows_assemble_the_full_image() {
     };
     assert!(path_trace_window(&s, t.as_ref(), &cam, w, h, &pc, outside).is_err());
 }
+
+/// Vertex colours reach every integrator through `Scene::albedo`: a floor whose vertices are
+/// all red, under a white light, renders red (green and blue only from the light's own pixels,
+/// which these cameras do not see); a colour list of the wrong length, or outside [0, 1], is
+/// refused naming the mesh.
+#[test]
+fn vertex_colors_colour_every_integrator() {
+    use raysift::render::radiosity::{instant_radiosity, IrConfig};
+    use raysift::scene::{Material, Mesh};
+    let quad = |y: f32, h: f32| {
+        let p = [[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, h]].map(Vec3::from);
+        (p.to_vec(), vec![[0, 2, 1], [0, 3, 2]])
+    };
+    let (fp, fi) = quad(0.0, 2.0);
+    let (lp, li) = quad(1.0, 0.5);
+    let red = vec![Vec3::new(0.8, 0.0, 0.0); 4];
+    let floor = Mesh::new("floor", fp.clone(), fi.clone()).with_colors(red.clone());
+    let light = Mesh::new("light", lp, li).with_material(Material {
+        diffuse: Vec3::ZERO,
+        emission: Vec3::ONE,
+        mirror: false,
+    });
+    let s = Scene::from_meshes("red", vec![floor, light.clone()]).unwrap();
+    let cam = Camera {
+        eye: Vec3::new(0.0, 0.6, 2.0),
+        look: Vec3::new(0.0, 0.0, 0.0),
+        up: Vec3::Y,
+        fov_deg: 40.0,
+    };
+    let (w, h) = (8, 8);
+    let t = tracer("bvh", &s);
+    let lights = Lights::of_scene(&s);
+    let pc = PathConfig {
+        spp: 4,
+        bounces: 1,
+        ..Default::default()
+    };
+    let path = mean(
+        &path_trace_lit(&s, t.as_ref(), &cam, w, h, &pc, &lights)
+            .unwrap()
+            .0,
+    );
+    let dc = DistConfig {
+        aa: 1,
+        light_side: 2,
+        bounce_side: 0,
+        seed: 1,
+    };
+    let dist = mean(
+        &distribution(&s, t.as_ref(), &cam, w, h, &lights, &dc)
+            .unwrap()
+            .0,
+    );
+    let ir = IrConfig {
+        vpls: 50,
+        subset: 8,
+        ..Default::default()
+    };
+    let ir = mean(
+        &instant_radiosity(&s, t.as_ref(), &cam, w, h, &lights, &ir)
+            .unwrap()
+            .0,
+    );
+    for (name, c) in [
+        ("path", path),
+        ("distribution", dist),
+        ("instant radiosity", ir),
+    ] {
+        assert!(c.x > 0.01 && c.y == 0.0 && c.z == 0.0, "{name}: {c}");
+    }
+    let short = Mesh::new("floor", fp.clone(), fi.clone()).with_colors(red[..3].to_vec());
+    let e = Scene::from_meshes("bad", vec![short])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("mesh 0 (floor)") && e.contains("3 colours for 4 vertices"),
+        "{e}"
+    );
+    let mut big = red;
+    big[2].y = 1.5;
+    let e = Scene::from_meshes("bad", vec![Mesh::new("floor", fp, fi).with_colors(big)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("vertex 2") && e.contains("not in [0, 1]"), "{e}");
+}

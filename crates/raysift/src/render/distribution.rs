@@ -138,6 +138,8 @@ pub fn distribution(
     let mut radiance = vec![Vec3::ZERO; rays.len()];
     let default = Material::default();
     let mat = |hits: &HitBatch, i: usize| *scene.material(hits.prim[i]).unwrap_or(&default);
+    let albedo =
+        |hits: &HitBatch, i: usize| scene.albedo(hits.prim[i], hits.u[i], hits.v[i], &default);
     // Mirror levels: reflected rays of one level in one batch.
     let mut final_rays = RayBatch::with_capacity(rays.len());
     let mut final_hits = HitBatch::new(0);
@@ -195,9 +197,9 @@ pub fn distribution(
             .into_par_iter()
             .map(|k| {
                 let (p, n) = generate::hit_frame(scene, &final_rays, &final_hits, k);
-                let m = mat(&final_hits, k);
+                let rho = albedo(&final_hits, k);
                 let mut rng = vertex_rng(cfg.seed ^ 0x5A5A, f_sample[k], 0, 0);
-                (p + n * eps, n, m.diffuse, [rng.gen(), rng.gen()])
+                (p + n * eps, n, rho, [rng.gen(), rng.gen()])
             })
             .collect();
         if nl > 0 {
@@ -260,7 +262,7 @@ pub fn distribution(
                         return None;
                     }
                     let (p, n) = generate::hit_frame(scene, &batch, &bh, b);
-                    let m = mat(&bh, b);
+                    let rho = albedo(&bh, b);
                     let k = range.start + b / (bs * bs);
                     let mut rng =
                         vertex_rng(cfg.seed ^ 0xB0B0, f_sample[k], 1, (b % (bs * bs)) as u32);
@@ -269,7 +271,7 @@ pub fn distribution(
                     let (y, ny) = l.sample(u, rng.gen());
                     let o = p + n * eps;
                     let g = geometry_term(o, n, y, ny, l.radiance);
-                    let c = m.diffuse * FRAC_1_PI * g * (l.area / pl);
+                    let c = rho * FRAC_1_PI * g * (l.area / pl);
                     (c.max_element() > 0.0).then(|| (shadow_ray(o, y), c))
                 })
                 .collect();

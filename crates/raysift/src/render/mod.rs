@@ -227,7 +227,11 @@ fn diffuse(
     w: u32,
     h: u32,
 ) -> Vec<Vec3> {
-    let albedo = Vec3::new(0.85, 0.8, 0.7);
+    // The scene's colours (materials, vertex colours), warm grey where it has none.
+    let default = crate::scene::Material {
+        diffuse: Vec3::new(0.85, 0.8, 0.7),
+        ..Default::default()
+    };
     (0..rays.len())
         .into_par_iter()
         .map(|i| {
@@ -241,6 +245,7 @@ fn diffuse(
             } else {
                 0.0
             };
+            let albedo = scene.albedo(hits.prim[i], hits.u[i], hits.v[i], &default);
             albedo * (ambient + 0.9 * direct)
         })
         .collect()

@@ -378,7 +378,7 @@ pub fn path_trace_lit_window(
                             shadow: None,
                         };
                     }
-                    let f = tp * m.diffuse;
+                    let f = tp * scene.albedo(prim, hits.u[i], hits.v[i], &default);
                     let shadow = (!lights.is_empty())
                         .then(|| {
                             let (k, pl, u) = lights.pick(rng.gen());

@@ -133,7 +133,7 @@ pub fn shoot_vpls(
                 continue;
             }
             let (p, n) = generate::hit_frame(scene, &rays, &hits, i);
-            let rho = scene.material(hits.prim[i]).unwrap_or(&default).diffuse;
+            let rho = scene.albedo(hits.prim[i], hits.u[i], hits.v[i], &default);
             vpls.push(Vpl {
                 p: p + n * eps,
                 n,
@@ -232,7 +232,7 @@ fn shade_sample(
             .par_iter()
             .flat_map_iter(|&i| {
                 let (p, n) = generate::hit_frame(scene, &rays, &hits, i);
-                let rho = scene.material(hits.prim[i]).unwrap_or(&default).diffuse;
+                let rho = scene.albedo(hits.prim[i], hits.u[i], hits.v[i], &default);
                 let o = p + n * eps;
                 let mut rng = vertex_rng(cfg.seed ^ 0x1A, sample, 1, i as u32);
                 let picks: Vec<usize> = if s == vpls.len() {

@@ -13,103 +13,18 @@
 //! the shared triangle test never hits them (see `geom::triangle`).
 
 pub mod animate;
+mod check;
 pub mod io;
+mod mesh;
 pub mod procedural;
 
 use crate::error::{Error, Result};
 use crate::geom::{triangle::is_degenerate, Aabb};
 use glam::{Affine3A, Vec3};
 
+use check::{check_colors, check_materials, check_positions, check_transform};
 pub use io::load;
-
-/// One mesh: local-space vertices, triangles as index triples, and a rigid (affine) transform.
-#[derive(Clone, Debug)]
-pub struct Mesh {
-    /// Name from the file (object, group, node) or generator.
-    pub name: String,
-    /// Local-space vertex positions.
-    pub positions: Vec<Vec3>,
-    /// Triangles as indices into `positions`.
-    pub indices: Vec<[u32; 3]>,
-    /// Local-to-world transform.
-    pub transform: Affine3A,
-    /// Materials by triangle range: `(first, material)` applies from the mesh's triangle `first`
-    /// up to the next entry's `first` (entries in increasing order). Empty: the mesh has no
-    /// material, and renderers use their default grey ([`Scene::material`] gives `None`).
-    pub materials: Vec<(u32, Material)>,
-}
-
-impl Mesh {
-    /// A mesh with identity transform and no material.
-    pub fn new(name: impl Into<String>, positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Self {
-        Self {
-            name: name.into(),
-            positions,
-            indices,
-            transform: Affine3A::IDENTITY,
-            materials: Vec::new(),
-        }
-    }
-
-    /// The mesh with one material on all its triangles.
-    pub fn with_material(mut self, m: Material) -> Self {
-        self.materials = vec![(0, m)];
-        self
-    }
-}
-
-/// A surface's material, as the renderers use it: Lambertian diffuse reflectance, emitted
-/// radiance (non-zero makes the surface an area light, emitting from both sides), or a perfect
-/// mirror (reflects everything; its diffuse colour is then the mirror's tint).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Material {
-    /// Diffuse reflectance (albedo) per RGB channel, each in [0, 1].
-    pub diffuse: Vec3,
-    /// Emitted radiance per RGB channel (W·sr⁻¹·m⁻² in scene units), each >= 0.
-    pub emission: Vec3,
-    /// A perfect mirror.
-    pub mirror: bool,
-}
-
-impl Default for Material {
-    /// Grey 0.7, not emissive, not a mirror (the path tracer's albedo for material-less meshes).
-    fn default() -> Self {
-        Self {
-            diffuse: Vec3::splat(0.7),
-            emission: Vec3::ZERO,
-            mirror: false,
-        }
-    }
-}
-
-impl Material {
-    /// True when the surface emits light.
-    pub fn is_emissive(&self) -> bool {
-        self.emission.max_element() > 0.0
-    }
-
-    /// Checks that the colours are finite, the albedo in [0, 1] and the emission non-negative;
-    /// the error names the field.
-    pub fn validate(&self) -> std::result::Result<(), String> {
-        if !self.diffuse.is_finite()
-            || self.diffuse.min_element() < 0.0
-            || self.diffuse.max_element() > 1.0
-        {
-            return Err(format!(
-                "diffuse colour {:?} outside [0, 1]",
-                self.diffuse.to_array()
-            ));
-        }
-        if !self.emission.is_finite() || self.emission.min_element() < 0.0 {
-            return Err(format!(
-                "emission {:?} must be finite and non-negative",
-                self.emission.to_array()
-            ));
-        }
-        Ok(())
-    }
-}
+pub use mesh::{Material, Mesh};
 
 /// World-space triangles, structure-of-arrays by corner. Index `i` is primitive id `i`.
 #[derive(Clone, Debug, Default)]
@@ -290,6 +205,7 @@ impl Scene {
             }
             check_transform(&name, m, mesh, &mesh.transform)?;
             check_materials(&name, m, mesh)?;
+            check_colors(&name, m, mesh)?;
             total += mesh.indices.len() as u64;
         }
         if total >= u32::MAX as u64 {
@@ -555,6 +471,7 @@ impl Scene {
             .map(|m| {
                 m.positions.capacity() * 12
                     + m.indices.capacity() * 12
+                    + m.colors.capacity() * 12
                     + std::mem::size_of::<Mesh>()
             })
             .sum();
@@ -575,6 +492,28 @@ impl Scene {
             .partition_point(|&f| f <= prim)
             .checked_sub(1)?;
         self.mat[r].as_ref()
+    }
+
+    /// The diffuse colour at barycentrics (`u`, `v`) of primitive `prim` (a hit's `u`, `v`):
+    /// its material's diffuse colour (`default`'s when it has none), or, where its mesh has
+    /// vertex colours, their interpolation times the material's colour (alone when it has none).
+    #[inline]
+    pub fn albedo(&self, prim: u32, u: f32, v: f32, default: &Material) -> Vec3 {
+        let m = self.material(prim);
+        let g = self.geometry_of(prim);
+        let colored = self
+            .meshes
+            .get(g as usize)
+            .filter(|mesh| !mesh.colors.is_empty());
+        match colored {
+            None => m.unwrap_or(default).diffuse,
+            Some(mesh) => {
+                let [a, b, c] = mesh.indices[prim as usize - self.first_prim[g as usize] as usize]
+                    .map(|i| mesh.colors[i as usize]);
+                let col = a * (1.0 - u - v) + b * u + c * v;
+                col.clamp(Vec3::ZERO, Vec3::ONE) * m.map_or(Vec3::ONE, |m| m.diffuse)
+            }
+        }
     }
 
     /// The material runs: `(first primitive, material)` in increasing order, each up to the next
@@ -599,56 +538,6 @@ impl Scene {
         let [a, b, c] = self.soup.get(prim);
         crate::geom::triangle::normal(a, b, c).normalize_or_zero()
     }
-}
-
-fn check_positions(name: &str, m: usize, mesh: &Mesh, positions: &[Vec3]) -> Result<()> {
-    match positions.iter().position(|p| !p.is_finite()) {
-        Some(i) => Err(Error::parse(
-            name,
-            format!("mesh {m} ({}), vertex {i}", mesh.name),
-            format!("non-finite coordinate {:?}", positions[i]),
-        )),
-        None => Ok(()),
-    }
-}
-
-fn check_transform(name: &str, m: usize, mesh: &Mesh, t: &Affine3A) -> Result<()> {
-    if transform_is_finite(t) {
-        Ok(())
-    } else {
-        Err(Error::parse(
-            name,
-            format!("mesh {m} ({})", mesh.name),
-            "non-finite transform",
-        ))
-    }
-}
-
-fn check_materials(name: &str, m: usize, mesh: &Mesh) -> Result<()> {
-    let nt = mesh.indices.len();
-    let mut prev: Option<u32> = None;
-    for (r, (first, material)) in mesh.materials.iter().enumerate() {
-        let place = format!("mesh {m} ({}), material {r}", mesh.name);
-        if *first as usize >= nt.max(1) || prev.is_some_and(|p| p >= *first) {
-            return Err(Error::parse(
-                name,
-                place,
-                format!("first triangle {first} out of order or past the mesh's {nt} triangles"),
-            ));
-        }
-        material
-            .validate()
-            .map_err(|e| Error::parse(name, &place, e))?;
-        prev = Some(*first);
-    }
-    Ok(())
-}
-
-fn transform_is_finite(t: &Affine3A) -> bool {
-    t.matrix3.x_axis.is_finite()
-        && t.matrix3.y_axis.is_finite()
-        && t.matrix3.z_axis.is_finite()
-        && t.translation.is_finite()
 }
 
 /// The embedded default scene: the Stanford Bunny at Stanford's decimation level 2 (16,301

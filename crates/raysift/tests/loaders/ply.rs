@@ -172,3 +172,102 @@ fn ply_malformed() {
         "byte",
     );
 }
+
+/// A square of two triangles whose vertices are red, green, blue and white.
+fn ply_colors_ascii(ty: &str, vals: [&str; 4]) -> String {
+    format!(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+property float z\nproperty {ty} red\nproperty {ty} green\nproperty {ty} blue\nelement face 2\n\
+property list uchar int vertex_indices\nend_header\n\
+0 0 0 {}\n1 0 0 {}\n1 1 0 {}\n0 1 0 {}\n3 0 1 2\n3 0 2 3\n",
+        vals[0], vals[1], vals[2], vals[3]
+    )
+}
+
+/// Vertex colours (`red green blue`, uchar or float, ascii or binary) become the mesh's
+/// `colors`, scaled to [0, 1], and `Scene::albedo` interpolates them with a hit's (u, v).
+#[test]
+fn ply_vertex_colors() {
+    use raysift::scene::Material;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let want = [
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::ONE,
+    ];
+    let uchar = ply_colors_ascii("uchar", ["255 0 0", "0 255 0", "0 0 255", "255 255 255"]);
+    let float = ply_colors_ascii("float", ["1 0 0", "0 1 0", "0 0 1", "1 1 1"]);
+    // Binary little endian, float positions and uchar colours.
+    let mut bin = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n\
+property uchar blue\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    for (p, c) in [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]]
+        .iter()
+        .zip(want)
+    {
+        p.iter()
+            .for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
+        bin.extend(c.to_array().map(|x| (x * 255.0) as u8));
+    }
+    for f in [[0i32, 1, 2], [0, 2, 3]] {
+        bin.push(3);
+        f.iter()
+            .for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
+    }
+    let grey = Material::default();
+    for (name, bytes) in [
+        ("u8.ply", uchar.as_bytes()),
+        ("f32.ply", float.as_bytes()),
+        ("bin.ply", &bin[..]),
+    ] {
+        let s = load(write(d, name, bytes)).unwrap();
+        assert_eq!(s.meshes()[0].colors, want, "{name}");
+        // Triangle 0 is vertices 0, 1, 2: at (u, v) the colour is (1-u-v)·c0 + u·c1 + v·c2.
+        assert_eq!(s.albedo(0, 0.0, 0.0, &grey), want[0]);
+        assert_eq!(s.albedo(0, 1.0, 0.0, &grey), want[1]);
+        assert_eq!(s.albedo(1, 0.0, 1.0, &grey), want[3]);
+        let mid = s.albedo(0, 0.25, 0.5, &grey);
+        assert!(
+            (mid - Vec3::new(0.25, 0.25, 0.5)).abs().max_element() < 1e-6,
+            "{mid}"
+        );
+    }
+    // Without colours the material's (or the default's) diffuse colour.
+    let s = load(write(d, "plain.ply", ply_ascii().as_bytes())).unwrap();
+    assert!(s.meshes()[0].colors.is_empty());
+    assert_eq!(s.albedo(0, 0.3, 0.3, &grey), grey.diffuse);
+    // Only two of the three channels: no colours (nothing to interpolate), not an error.
+    let two = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nproperty uchar red\nproperty uchar green\nelement face 1\n\
+property list uchar int vertex_indices\nend_header\n0 0 0 255 0\n1 0 0 0 255\n1 1 0 9 9\n3 0 1 2\n";
+    let s = load(write(d, "two.ply", two.as_bytes())).unwrap();
+    assert!(s.meshes()[0].colors.is_empty());
+    // A float colour outside [0, 1], a negative integer one: the file, line and vertex named.
+    let e = load_err(
+        d,
+        "big.ply",
+        float.replace("0 1 0 1 1 1", "0 1 0 1 1.5 1").as_bytes(),
+        "line 16",
+    );
+    assert!(
+        e.contains("vertex 3") && e.contains("outside [0, 1]"),
+        "{e}"
+    );
+    let e = load_err(
+        d,
+        "neg.ply",
+        ply_colors_ascii("char", ["1 0 0", "0 1 0", "0 0 -1", "1 1 1"]).as_bytes(),
+        "line 15",
+    );
+    assert!(e.contains("vertex 2"), "{e}");
+    let e = load_err(
+        d,
+        "word.ply",
+        uchar.replace("1 1 0 0 0 255", "1 1 0 0 0 blue").as_bytes(),
+        "line 15",
+    );
+    assert!(e.contains("vertex 2") && e.contains("blue"), "{e}");
+}
