@@ -3,7 +3,8 @@
 //!
 //! Storage (bytes per triangle, documented in ARCHITECTURE.md):
 //! - the **source meshes**, indexed: local positions (12 B per vertex) and `[u32; 3]` indices
-//!   (12 B per triangle), plus one `Affine3A` per mesh;
+//!   (12 B per triangle), vertex colours where the file has them (12 B per vertex), plus one
+//!   `Affine3A` per mesh;
 //! - the **world soup**, structure-of-arrays by corner: `v0`, `v1`, `v2` arrays of `Vec3`
 //!   (36 B per triangle), rebuilt by [`Scene::rebake`] after a transform or a vertex changes.
 //!
