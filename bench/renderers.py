@@ -6,12 +6,16 @@
   ir         instant radiosity at 1K/10K/40K VPLs (1 and 3 photon bounces) on the Cornell box
              and Sponza: rays and Mrays/s per phase.
   brainstem  per-frame animation, prepare and trace of BrainStem.glb's clip, 60 frames.
+  embree     the Table 4 bunny and the instant-radiosity Cornell box and Sponza (10K VPLs), each
+             recorded once (`render --record-rays`, bvh) and its camera, photon and shadow rays
+             traced by the Embree peer (`--packet 1` and `--packet 16`) beside the raysift
+             renders; Embree's answers are checked against the recorded ones.
 
 Each part runs `--rounds` rounds; within a round every tracer runs once, in rotated order, and
 the tables give medians over rounds. Prints Markdown tables (and the commands) to stdout.
 
 Usage: python3 bench/renderers.py [--raysift target/release/raysift] [--shared ../shared]
-       [--rounds 3] [--parts table4,ir,brainstem]
+       [--rounds 3] [--parts table4,ir,brainstem,embree] [--peer bench/target/release/embree-peer]
 """
 
 import argparse
@@ -130,17 +134,125 @@ def brainstem(a):
     print()
 
 
+def embree(a):
+    import numpy as np
+
+    bunny = os.path.join(a.shared, "scenes", "bun_zipper.ply")
+    cornell = os.path.join(ROOT, "assets", "scenes", "CornellBox-Original.obj")
+    sponza = os.path.join(a.shared, "scenes", "sponza.obj.gz")
+    ir = ["--integrator", "instant-radiosity", "--width", "128", "--height", "128", "--vpls",
+          "10000", "--vpl-bounces", "1", "--vpl-subset", "64"]
+    work = [("Table 4, bunny 256², 16×16 light samples", bunny,
+             ["--integrator", "distribution", "--width", "256", "--height", "256",
+              "--light-samples", "16", "--area-light", "-0.017,0.35,0.0,0.05,1"],
+             ["bvh", "dacrt", "kdtree", "rtt"]),
+            ("instant radiosity, Cornell box, 10K VPLs", cornell, ir,
+             ["naive", "bvh", "dacrt", "kdtree"]),
+            ("instant radiosity, Sponza, 10K VPLs", sponza,
+             ir + ["--area-light", "0,12,0,2,2000"], ["bvh", "dacrt", "kdtree"])]
+    threads = str(os.cpu_count() or 1)
+    for k, (name, scene, args, tracers) in enumerate(work):
+        d = f"/tmp/renderers-embree-{k}"
+        base = [a.raysift, "render", scene] + args + ["--json", "--quiet", "--out",
+                                                      f"/tmp/renderers-embree-{k}.png"]
+        subprocess.run(base + ["--tracer", "bvh", "--record-rays", d], check=True,
+                       capture_output=True)
+        tris = f"{d}/tris.npy"
+        subprocess.run([a.raysift, "export", scene, "--out", tris], check=True,
+                       capture_output=True)
+        calls = json.load(open(f"{d}/calls.json"))
+        rays = {"intersect": np.load(f"{d}/intersect-rays.npy"),
+                "occluded": np.load(f"{d}/occluded-rays.npy")}
+        answer = {"intersect": np.load(f"{d}/intersect-hits.npy")["prim"],
+                  "occluded": np.load(f"{d}/occluded.npy")}
+        # Phases: camera rays (a pinhole layout), photons (the other closest-hit calls), shadow.
+        phase_of = lambda c: ("shadow" if c["kind"] == "occluded" else
+                              "camera" if c["layout"].startswith("pinhole") else "photon")
+        phases = {}
+        for c in calls:
+            kind, rows = c["kind"], slice(c["start"], c["start"] + c["rays"])
+            phases.setdefault(phase_of(c), (kind, []))[1].append(rows)
+        files = {}
+        for ph, (kind, rows) in phases.items():
+            idx = np.concatenate([np.arange(r.start, r.stop) for r in rows])
+            f = f"{d}/{ph}-rays.npy"
+            np.save(f, rays[kind][idx])
+            files[ph] = (kind, f, answer[kind][idx])
+        width = args[args.index("--width") + 1]
+        height = args[args.index("--height") + 1]
+
+        def peer(ph, packet):
+            kind, f, _ = files[ph]
+            cmd = [a.peer, "--tris", tris, "--rays", f, "--packet", str(packet), "--threads",
+                   threads, "--repeat", "3", "--out", f"{d}/{ph}-embree{packet}.npy"]
+            if kind == "occluded":
+                cmd.append("--occlusion")
+            if ph == "camera" and packet == 16:
+                cmd += ["--tile", f"{width},{height}"]
+            return run(cmd)
+
+        contenders = tracers + ["embree packet 1", "embree packet 16"]
+
+        def job(c):
+            if c in tracers:
+                return run(base + ["--tracer", c])
+            packet = 1 if c.endswith(" 1") else 16
+            return {ph: peer(ph, packet) for ph in files
+                    if packet == 1 or ph != "photon"}
+
+        res = rounds(a.rounds, contenders, job)
+        print(f"**{name}** (`{' '.join(base[1:])} --tracer T`; Embree: the recorded rays, "
+              f"`embree-peer --threads {threads} --repeat 3`, camera 16-packets over 4×4 tiles, "
+              "shadow 16-packets of 16 consecutive rays)\n")
+        order = [ph for ph in ("camera", "photon", "shadow") if ph in files]
+        for ph in order:
+            kind, _, want = files[ph]
+            bad = []
+            for packet in (1, 16):
+                out = f"{d}/{ph}-embree{packet}.npy"
+                if not os.path.exists(out):
+                    continue
+                got = np.load(out)
+                got = got["prim"] if kind == "intersect" else got
+                bad.append(f"packet {packet}: {int((got != want).sum()):,}")
+            print(f"- {ph}: {len(want):,} rays; Embree answers differing from raysift's "
+                  f"({'primitive' if kind == 'intersect' else 'occlusion'}): " + ", ".join(bad))
+        print()
+        print("| contender | " + " | ".join(f"{ph} ms | {ph} Mrays/s" for ph in order) + " |")
+        print("|---|" + "---:|---:|" * len(order))
+        raysift_phase = {"camera": ["primary", "camera"], "photon": ["photon emission",
+                                                                   "photon bounces"],
+                         "shadow": ["shadow"]}
+        for c in contenders:
+            cells = []
+            for ph in order:
+                n = len(files[ph][2])
+                if c in tracers:
+                    ms = med([sum(passes(v)[p]["trace_ms"] for p in raysift_phase[ph]
+                                  if p in passes(v)) for v in res[c]])
+                elif ph in res[c][0]:
+                    ms = med([v[ph]["trace_ms"] for v in res[c]])
+                else:
+                    cells += ["—", "—"]
+                    continue
+                cells += [f"{ms:.1f}", f"{n / max(ms, 1e-6) / 1e3:.2f}"]
+            print(f"| {c} | " + " | ".join(cells) + " |")
+        print()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--raysift", default=os.path.join(ROOT, "target", "release", "raysift"))
     ap.add_argument("--shared", default=os.path.join(ROOT, "..", "shared"))
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--parts", default="table4,ir,brainstem")
+    ap.add_argument("--parts", default="table4,ir,brainstem,embree")
+    ap.add_argument("--peer", default=os.path.join(ROOT, "bench", "target", "release",
+                                                   "embree-peer"))
     a = ap.parse_args()
-    parts = {"table4": table4, "ir": ir, "brainstem": brainstem}
+    parts = {"table4": table4, "ir": ir, "brainstem": brainstem, "embree": embree}
     for p in a.parts.split(","):
         if p not in parts:
-            ap.error(f"--parts: unknown part {p!r} (table4, ir, brainstem)")
+            ap.error(f"--parts: unknown part {p!r} (table4, ir, brainstem, embree)")
     for p in a.parts.split(","):
         print(f"### {p}\n")
         sys.stdout.flush()

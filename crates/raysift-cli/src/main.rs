@@ -19,6 +19,7 @@ mod info;
 mod pool;
 mod progress;
 mod rays;
+mod record;
 mod render;
 mod report;
 mod scenefile;

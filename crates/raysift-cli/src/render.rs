@@ -78,6 +78,11 @@ pub struct RenderArgs {
     /// distribution and instant radiosity only).
     #[arg(long, default_value = "raysift.png")]
     pub(crate) out: PathBuf,
+    /// Also write every ray the render traced, and the tracer's answers, into this folder
+    /// (intersect-rays.npy, intersect-hits.npy, occluded-rays.npy, occluded.npy, calls.json),
+    /// for tracing the same workload with another engine. Recording slows the render.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) record_rays: Option<PathBuf>,
     /// No progress bar or spinner (they are drawn only on a terminal, after about a second).
     #[arg(long)]
     pub(crate) quiet: bool,
@@ -154,6 +159,11 @@ fn check(a: &RenderArgs) -> Result<()> {
     }
     for l in &a.area_light {
         area_light(l)?;
+    }
+    if let Some(d) = &a.record_rays {
+        if d.exists() && !d.is_dir() {
+            bail!("--record-rays {}: exists and is not a folder", d.display());
+        }
     }
     let dist = a.integrator == Integrator::Distribution;
     let ir = a.integrator == Integrator::InstantRadiosity;
@@ -272,21 +282,39 @@ pub fn run(a: &RenderArgs, given: &[String]) -> Result<()> {
             check(&a)?;
             let make = make_tracer(&a.tracer)?;
             let s = crate::scenefile::load(file, &f)?;
-            render_scene(&a, make, s)
+            render_recorded(&a, make, s)
         }
         None => {
             check(a)?;
             let make = make_tracer(&a.tracer)?;
             let s = open_scene_or_default(a.scene.as_deref())?;
-            render_scene(a, make, s)
+            render_recorded(a, make, s)
         }
     }
+}
+
+/// Renders, then writes the recorded rays when `--record-rays` asks for them.
+fn render_recorded(
+    a: &RenderArgs,
+    tracer: Box<dyn raysift::Tracer>,
+    s: raysift::Scene,
+) -> Result<()> {
+    let rec = a
+        .record_rays
+        .as_ref()
+        .map(|_| crate::record::Recorder::default());
+    render_scene(a, tracer, &s, rec.as_ref())?;
+    if let (Some(dir), Some(rec)) = (&a.record_rays, &rec) {
+        rec.write(dir, &s)?;
+    }
+    Ok(())
 }
 
 fn render_scene(
     a: &RenderArgs,
     mut tracer: Box<dyn raysift::Tracer>,
-    s: raysift::Scene,
+    s: &raysift::Scene,
+    rec: Option<&crate::record::Recorder>,
 ) -> Result<()> {
     let cam = camera_for(&s.bounds(), &a.view)?;
     let (w, h) = (a.view.width, a.view.height);
@@ -329,7 +357,12 @@ fn render_scene(
         },
     };
     let bar = RenderBar::new(plan);
-    let hook = |c| bar.on(c);
+    let hook = |c: render::progress::Call| {
+        bar.on(c);
+        if let Some(r) = rec {
+            r.on(c);
+        }
+    };
     let inner = tracer;
     let watched = render::progress::Watched::new(inner.as_ref(), &hook);
     let tracer: &dyn raysift::Tracer = &watched;

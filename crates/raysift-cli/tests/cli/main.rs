@@ -98,4 +98,5 @@ fn tracer_names() -> Vec<String> {
 mod commands;
 mod cones;
 mod errors;
+mod record;
 mod scenefile;

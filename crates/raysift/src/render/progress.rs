@@ -18,9 +18,18 @@ pub enum CallKind {
     Occluded,
 }
 
+/// What a trace call answered.
+#[derive(Clone, Copy, Debug)]
+pub enum Answer<'a> {
+    /// Closest hits, one per ray.
+    Hits(&'a HitBatch),
+    /// Any-hit flags, one per ray.
+    Occluded(&'a [bool]),
+}
+
 /// One trace call, reported to the hook after it returns.
 #[derive(Clone, Copy, Debug)]
-pub struct Call {
+pub struct Call<'a> {
     /// Closest or any hit.
     pub kind: CallKind,
     /// True for camera rays (a [`RayLayout::Pinhole`] or [`RayLayout::PixelSamples`] batch):
@@ -30,18 +39,25 @@ pub struct Call {
     pub rays: u64,
     /// Rays that hit (closest hit) or were blocked (any hit).
     pub hits: u64,
+    /// The rays traced (for a hook that records the workload, e.g. `render --record-rays`).
+    pub batch: &'a RayBatch,
+    /// The tracer's answers to them.
+    pub answer: Answer<'a>,
 }
+
+/// The hook [`Watched`] calls after every trace call.
+pub type Hook<'a> = dyn for<'c> Fn(Call<'c>) + Send + Sync + 'a;
 
 /// A prepared tracer whose trace calls are reported to `hook`. Prepare the inner tracer first:
 /// [`Watched::prepare`] refuses, since the wrapper only borrows it.
 pub struct Watched<'a> {
     inner: &'a dyn Tracer,
-    hook: &'a (dyn Fn(Call) + Send + Sync),
+    hook: &'a Hook<'a>,
 }
 
 impl<'a> Watched<'a> {
     /// Wraps `inner` (already prepared for the scene it will trace).
-    pub fn new(inner: &'a dyn Tracer, hook: &'a (dyn Fn(Call) + Send + Sync)) -> Self {
+    pub fn new(inner: &'a dyn Tracer, hook: &'a Hook<'a>) -> Self {
         Self { inner, hook }
     }
 }
@@ -77,6 +93,8 @@ impl Tracer for Watched<'_> {
             camera: is_camera(rays),
             rays: rays.len() as u64,
             hits: hits.hit_count() as u64,
+            batch: rays,
+            answer: Answer::Hits(hits),
         });
         Ok(s)
     }
@@ -94,6 +112,8 @@ impl Tracer for Watched<'_> {
             camera: false,
             rays: rays.len() as u64,
             hits: occluded.iter().filter(|&&b| b).count() as u64,
+            batch: rays,
+            answer: Answer::Occluded(occluded),
         });
         Ok(s)
     }
