@@ -142,16 +142,22 @@ def embree(a):
     sponza = os.path.join(a.shared, "scenes", "sponza.obj.gz")
     ir = ["--integrator", "instant-radiosity", "--width", "128", "--height", "128", "--vpls",
           "10000", "--vpl-bounces", "1", "--vpl-subset", "64"]
+    brainstem = os.path.join(a.shared, "scenes", "animated", "BrainStem.glb")
+    medium = [("embree packet 1", 1, "medium"), ("embree packet 16", 16, "medium")]
+    # (title, scene, render arguments, raysift tracers, Embree contenders: name, packet, quality)
     work = [("Table 4, bunny 256², 16×16 light samples", bunny,
              ["--integrator", "distribution", "--width", "256", "--height", "256",
               "--light-samples", "16", "--area-light", "-0.017,0.35,0.0,0.05,1"],
-             ["bvh", "dacrt", "kdtree", "rtt"]),
+             ["bvh", "dacrt", "kdtree", "rtt"], medium),
             ("instant radiosity, Cornell box, 10K VPLs", cornell, ir,
-             ["naive", "bvh", "dacrt", "kdtree"]),
+             ["naive", "bvh", "dacrt", "kdtree"], medium),
             ("instant radiosity, Sponza, 10K VPLs", sponza,
-             ir + ["--area-light", "0,12,0,2,2000"], ["bvh", "dacrt", "kdtree"])]
+             ir + ["--area-light", "0,12,0,2,2000"], ["bvh", "dacrt", "kdtree"], medium),
+            ("BrainStem, one frame (the glTF's pose as loaded), 320×240 with shadow rays",
+             brainstem, ["--width", "320", "--height", "240"], ["bvh", "dacrt"],
+             [("embree low packet 16", 16, "low"), ("embree packet 16", 16, "medium")])]
     threads = str(os.cpu_count() or 1)
-    for k, (name, scene, args, tracers) in enumerate(work):
+    for k, (name, scene, args, tracers, embrees) in enumerate(work):
         d = f"/tmp/renderers-embree-{k}"
         base = [a.raysift, "render", scene] + args + ["--json", "--quiet", "--out",
                                                       f"/tmp/renderers-embree-{k}.png"]
@@ -181,50 +187,58 @@ def embree(a):
         width = args[args.index("--width") + 1]
         height = args[args.index("--height") + 1]
 
-        def peer(ph, packet):
+        def peer(ph, packet, quality):
             kind, f, _ = files[ph]
             cmd = [a.peer, "--tris", tris, "--rays", f, "--packet", str(packet), "--threads",
-                   threads, "--repeat", "3", "--out", f"{d}/{ph}-embree{packet}.npy"]
+                   threads, "--repeat", "3", "--quality", quality, "--out",
+                   f"{d}/{ph}-embree{packet}-{quality}.npy"]
             if kind == "occluded":
                 cmd.append("--occlusion")
             if ph == "camera" and packet == 16:
                 cmd += ["--tile", f"{width},{height}"]
             return run(cmd)
 
-        contenders = tracers + ["embree packet 1", "embree packet 16"]
+        embree_of = {e[0]: e[1:] for e in embrees}
+        contenders = tracers + list(embree_of)
 
         def job(c):
             if c in tracers:
                 return run(base + ["--tracer", c])
-            packet = 1 if c.endswith(" 1") else 16
-            return {ph: peer(ph, packet) for ph in files
+            packet, quality = embree_of[c]
+            return {ph: peer(ph, packet, quality) for ph in files
                     if packet == 1 or ph != "photon"}
 
         res = rounds(a.rounds, contenders, job)
         print(f"**{name}** (`{' '.join(base[1:])} --tracer T`; Embree: the recorded rays, "
               f"`embree-peer --threads {threads} --repeat 3`, camera 16-packets over 4×4 tiles, "
-              "shadow 16-packets of 16 consecutive rays)\n")
+              "shadow 16-packets of 16 consecutive rays; prepare = Embree's build)\n")
         order = [ph for ph in ("camera", "photon", "shadow") if ph in files]
         for ph in order:
             kind, _, want = files[ph]
             bad = []
-            for packet in (1, 16):
-                out = f"{d}/{ph}-embree{packet}.npy"
+            for e, (packet, quality) in embree_of.items():
+                out = f"{d}/{ph}-embree{packet}-{quality}.npy"
                 if not os.path.exists(out):
                     continue
                 got = np.load(out)
                 got = got["prim"] if kind == "intersect" else got
-                bad.append(f"packet {packet}: {int((got != want).sum()):,}")
+                bad.append(f"{e}: {int((got != want).sum()):,}")
             print(f"- {ph}: {len(want):,} rays; Embree answers differing from raysift's "
                   f"({'primitive' if kind == 'intersect' else 'occlusion'}): " + ", ".join(bad))
         print()
-        print("| contender | " + " | ".join(f"{ph} ms | {ph} Mrays/s" for ph in order) + " |")
-        print("|---|" + "---:|---:|" * len(order))
+        print("| contender | prepare ms | " +
+              " | ".join(f"{ph} ms | {ph} Mrays/s" for ph in order) + " | prepare + trace ms |")
+        print("|---|---:|" + "---:|---:|" * len(order) + "---:|")
         raysift_phase = {"camera": ["primary", "camera"], "photon": ["photon emission",
                                                                    "photon bounces"],
                          "shadow": ["shadow"]}
         for c in contenders:
-            cells = []
+            cells, total = [], 0.0
+            if c in tracers:
+                prep = med([v["prepare_ms"] for v in res[c]])
+            else:
+                prep = med([v[order[-1]]["prepare_ms"] for v in res[c]])
+            total += prep
             for ph in order:
                 n = len(files[ph][2])
                 if c in tracers:
@@ -235,8 +249,9 @@ def embree(a):
                 else:
                     cells += ["—", "—"]
                     continue
+                total += ms
                 cells += [f"{ms:.1f}", f"{n / max(ms, 1e-6) / 1e3:.2f}"]
-            print(f"| {c} | " + " | ".join(cells) + " |")
+            print(f"| {c} | {prep:.1f} | " + " | ".join(cells) + f" | {total:.1f} |")
         print()
 
 
