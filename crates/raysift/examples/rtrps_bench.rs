@@ -2,8 +2,10 @@
 //!
 //! `cargo run --release -p raysift --example rtrps_bench -- table3`: spheres, leaf spheres and
 //! triangles per leaf for the bunny, Sponza and the dragon (leaf sizes 1 and 2, both centre rules).
-//! `... -- fig11 [scene] [origins]`: plane/sphere tests split as Fig. 11 (all planes, culling,
-//! tree, both) on 16×16 area-light shadow grids and 8×8 hemisphere bounce grids from camera hits.
+//! `... -- fig11 [scene] [origins] [shadow]`: plane/sphere tests split as Fig. 11 (all planes,
+//! culling, tree, both; flat inner spheres, no depth cull, as the paper), then ours (binary
+//! levels, then the depth cull) on 16×16 area-light shadow grids and (unless `shadow`) 8×8
+//! hemisphere bounce grids from camera hits.
 //! `... -- table5 [scene] [origins]`: the same shadow grids timed: rtrps (planes) vs its random-ray
 //! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3.
 //! `... -- table6 [scene] [frames]`: first hit at 1024²: update + trace per frame under
@@ -118,7 +120,7 @@ fn table3() {
     }
 }
 
-fn fig11(spec: &str, origins: usize) {
+fn fig11(spec: &str, origins: usize, shadow_only: bool) {
     let scene = open(spec);
     let (sh, bo) = groups(&scene, origins);
     println!(
@@ -127,22 +129,28 @@ fn fig11(spec: &str, origins: usize) {
         sh.len(),
         bo.len()
     );
-    println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | rays reproduced | tri tests |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    for (what, rays, occl) in [("shadow 16x16", &sh, true), ("bounce 8x8", &bo, false)] {
+    println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | depth culled | rays reproduced | tri tests |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let sets = [("shadow 16x16", &sh, true), ("bounce 8x8", &bo, false)];
+    for (what, rays, occl) in sets.into_iter().take(if shadow_only { 1 } else { 2 }) {
         for centre in ["box", "mean"] {
             let mut base = 0;
-            for (name, c, t) in [
-                ("all planes", "false", "false"),
-                ("culling", "true", "false"),
-                ("tree", "false", "true"),
-                ("culling+tree", "true", "true"),
+            for (name, c, t, lv, dc) in [
+                ("all planes", "false", "false", "flat", "false"),
+                ("culling", "true", "false", "flat", "false"),
+                ("tree", "false", "true", "flat", "false"),
+                ("culling+tree", "true", "true", "flat", "false"),
+                ("+ binary levels", "true", "true", "binary", "false"),
+                ("+ depth cull (default)", "true", "true", "binary", "true"),
             ] {
-                let mut tr = tracers::create(
-                    "rtrps",
-                    &opts(&[("culling", c), ("tree", t), ("centre", centre)]),
-                )
-                .unwrap();
+                let o = [
+                    ("culling", c),
+                    ("tree", t),
+                    ("centre", centre),
+                    ("levels", lv),
+                    ("depth_cull", dc),
+                ];
+                let mut tr = tracers::create("rtrps", &opts(&o)).unwrap();
                 tr.prepare(&scene).unwrap();
                 let w = if occl {
                     tr.occluded_timed(&scene, rays).unwrap().1.work
@@ -154,11 +162,12 @@ fn fig11(spec: &str, origins: usize) {
                     base = o + i;
                 }
                 println!(
-                    "| {what} | {name} | {centre} | {o} | {i} | {} | {:.1}% | {} | {} | {} | {} |",
+                    "| {what} | {name} | {centre} | {o} | {i} | {} | {:.1}% | {} | {} | {} | {} | {} |",
                     o + i,
                     100.0 * (o + i) as f64 / base as f64,
                     w.get("spheres_visited"),
                     w.get("spheres_culled"),
+                    w.get("depth_culled"),
                     w.get("rays_reproduced"),
                     w.get("tri_tests")
                 );
@@ -184,6 +193,11 @@ fn table5(spec: &str, origins: usize) {
     );
     let contenders: Vec<Contender> = vec![
         ("rtrps", "rtrps", vec![]),
+        (
+            "rtrps flat, no depth cull",
+            "rtrps",
+            opts(&[("levels", "flat"), ("depth_cull", "false")]),
+        ),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
         ("dacrt", "dacrt", vec![]),
@@ -266,9 +280,9 @@ fn main() {
     let n: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(2000);
     match what {
         "table3" => table3(),
-        "fig11" => fig11(spec, n),
+        "fig11" => fig11(spec, n, args.get(3).is_some_and(|a| a == "shadow")),
         "table5" => table5(spec, n),
         "table6" => table6(spec, n.min(50) as u32),
-        _ => eprintln!("usage: rtrps_bench table3 | fig11 [scene] [origins] | table5 [scene] [origins] | table6 [scene] [frames]"),
+        _ => eprintln!("usage: rtrps_bench table3 | fig11 [scene] [origins] [shadow] | table5 [scene] [origins] | table6 [scene] [frames]"),
     }
 }

@@ -133,6 +133,92 @@ fn packets_of_one_ray() {
     check(&scene, &cam);
 }
 
+/// The depth cull (`depth_cull`): layers of triangles behind a grid's origin, through it, just
+/// ahead and at the rays' ends: segments ending exactly on a layer (t = tmax), one ulp short
+/// of it, and grids with a negative `tmin` that reach the layer behind (the cull must switch
+/// off), each grid pointing forwards and backwards.
+#[test]
+fn depth_cull_keeps_hits_at_both_ends_and_behind() {
+    let mut tris = Vec::new();
+    for z in [-1.0f32, 0.0, 2.0, 2.000_001] {
+        for x in -4..4 {
+            for y in -4..4 {
+                let (x, y) = (x as f32 * 0.5, y as f32 * 0.5);
+                tris.push([
+                    Vec3::new(x, y, z),
+                    Vec3::new(x + 0.5, y, z),
+                    Vec3::new(x, y + 0.5, z + 0.01),
+                ]);
+            }
+        }
+    }
+    let scene = scene_of("layers", &tris);
+    let origins = [
+        Vec3::new(0.1, 0.2, 0.5),
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::ZERO,
+    ];
+    for axis in [Vec3::Z, -Vec3::Z, Vec3::new(0.2, -0.1, 1.0)] {
+        let base = grids(&origins, axis, 6, 0.4);
+        let mut ends = base.clone();
+        let mut short = base.clone();
+        let mut behind = base.clone();
+        for i in 0..base.len() {
+            // t at which the ray meets the plane z = 2 (or z = -1 going backwards).
+            let (oz, dz) = (base.oz[i], base.dz[i]);
+            let t = if dz > 0.0 {
+                (2.0 - oz) / dz
+            } else {
+                (-1.0 - oz) / dz
+            };
+            ends.tmax[i] = t;
+            short.tmax[i] = t.next_down();
+            behind.tmin[i] = -2.0;
+            behind.tmax[i] = t;
+        }
+        for b in [&base, &ends, &short, &behind] {
+            check(&scene, b);
+        }
+    }
+}
+
+/// The depth cull and the binary levels remove work without changing answers: grids from
+/// inside an icosphere see half of it behind their origin.
+#[test]
+fn depth_cull_and_binary_levels_remove_work() {
+    let scene = procedural::icosphere(3000);
+    let origins: Vec<Vec3> = (0..12)
+        .map(|k| Vec3::new(0.5, k as f32 * 0.05 - 0.3, 0.1))
+        .collect();
+    let rays = grids(&origins, -Vec3::X, 16, 0.3);
+    let run = |opts: &[(&str, &str)]| {
+        let opts: Vec<(String, String)> = opts
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        let mut t = tracers::create("rtrps", &opts).unwrap();
+        t.prepare(&scene).unwrap();
+        let (h, st) = t.intersect_timed(&scene, &rays).unwrap();
+        (h, st.work)
+    };
+    let (h_off, off) = run(&[("depth_cull", "false")]);
+    let (h_on, on) = run(&[]);
+    let (h_flat, flat) = run(&[("levels", "flat")]);
+    assert_eq!(off.get("depth_culled"), 0);
+    assert!(on.get("depth_culled") > 0, "{on:?}");
+    assert!(
+        on.get("rays_reproduced") < off.get("rays_reproduced"),
+        "{on:?} vs {off:?}"
+    );
+    assert!(
+        on.get("spheres_visited") < flat.get("spheres_visited"),
+        "{on:?} vs {flat:?}"
+    );
+    assert_eq!(raysift::testkit::first_difference(&h_off, &h_on), None);
+    assert_eq!(raysift::testkit::first_difference(&h_off, &h_flat), None);
+    check(&scene, &rays);
+}
+
 /// Hemisphere grids (a diffuse bounce) from surface points of the Cornell box, inside and out:
 /// the grids cross the scene's bounds; and area-light shadow grids (16×16).
 #[test]

@@ -15,7 +15,10 @@
 //! **Leaves** (the paper is silent on how; ours): a mesh's triangles in Morton order of their
 //! local centroids (10 bits per axis), cut into runs of `leaf_size`; inner spheres are runs of
 //! `cluster` consecutive leaves (`cluster = 0`: leaves hang from the part directly, the paper's
-//! depth 3). A leaf's centre is the centre of its vertices' box ([`Centre::Box`]) or their mean
+//! depth 3), either hanging from the part in one level ([`Levels::Flat`]) or as a binary tree
+//! over the part's Morton run, halved down to runs of at most `cluster` leaves
+//! ([`Levels::Binary`], ours: a flat level makes every group test every inner sphere of a
+//! visible part). A leaf's centre is the centre of its vertices' box ([`Centre::Box`]) or their mean
 //! ([`Centre::Mean`]); measured in BENCHMARKS.md § RTRPS.
 //!
 //! **Radii are exact bounds of what the shared triangle test can report.** A hit of
@@ -48,13 +51,34 @@ pub enum Centre {
     Mean,
 }
 
+/// How the inner spheres of a part are arranged.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Levels {
+    /// One level: runs of `cluster` leaves hang from the part.
+    Flat,
+    /// A binary tree over the part's Morton run of leaves, halved at each level down to runs of
+    /// at most `cluster` leaves (the bottom spheres, which hold the leaves).
+    #[default]
+    Binary,
+}
+
+/// No child: [`SphereTree::inner_kids`] of a bottom sphere.
+pub const NO_KID: u32 = u32::MAX;
+
+/// Deepest binary tree walked (runs halve at each level, so 2^64 leaves would be needed).
+pub const MAX_DEPTH: usize = 64;
+
 /// Build options of the hierarchy.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildConfig {
     /// Triangles per leaf sphere (1..=64).
     pub leaf_size: usize,
-    /// Leaves per inner sphere (0: none).
+    /// Leaves per inner sphere (0: none); with [`Levels::Binary`], at most this many leaves per
+    /// bottom sphere.
     pub cluster: usize,
+    /// Flat inner spheres or a binary tree of them.
+    pub levels: Levels,
     /// Leaf centre rule.
     pub centre: Centre,
 }
@@ -68,7 +92,8 @@ pub struct Part {
     pub centre: Vec3,
     /// Part sphere radius, local frame.
     pub radius: f32,
-    /// Inner spheres of the part (empty when leaves hang from the part).
+    /// Inner spheres of the part (empty when leaves hang from the part). Binary: the tree's
+    /// nodes in preorder, the root first.
     pub inner: std::ops::Range<u32>,
     /// Leaves of the part.
     pub leaves: std::ops::Range<u32>,
@@ -98,8 +123,11 @@ pub struct SphereTree {
     pub inner_c: Vec<Vec3>,
     /// Inner sphere radii (local).
     pub inner_r: Vec<f32>,
-    /// Leaves of each inner sphere.
+    /// Leaves of each inner sphere (all leaves below it).
     pub inner_leaves: Vec<[u32; 2]>,
+    /// Children of each inner sphere (binary levels), `[NO_KID, NO_KID]` for a bottom sphere,
+    /// whose leaves are its [`SphereTree::inner_leaves`].
+    pub inner_kids: Vec<[u32; 2]>,
     /// Leaf centres (local).
     pub leaf_c: Vec<Vec3>,
     /// Leaf radii (local).
@@ -240,18 +268,20 @@ impl SphereTree {
             }
             let leaves = leaf0..t.leaf_c.len() as u32;
             let inner0 = t.inner_c.len() as u32;
-            if cfg.cluster > 0 {
+            if cfg.cluster > 0 && cfg.levels == Levels::Flat {
                 let mut l = leaves.start;
                 while l < leaves.end {
                     let e = (l + cfg.cluster as u32).min(leaves.end);
-                    let (c, r) =
-                        parent_sphere((l..e).map(|k| (t.leaf_c[k as usize], t.leaf_r[k as usize])));
-                    t.inner_c.push(c);
-                    t.inner_r.push(r);
                     t.inner_leaves.push([l, e]);
+                    t.inner_kids.push([NO_KID; 2]);
                     l = e;
                 }
+            } else if cfg.cluster > 0 {
+                t.push_binary(leaves.start, leaves.end, cfg.cluster as u32);
             }
+            // Spheres are placeholders until `refit_part` below.
+            t.inner_c.resize(t.inner_leaves.len(), Vec3::ZERO);
+            t.inner_r.resize(t.inner_leaves.len(), 0.0);
             let inner = inner0..t.inner_c.len() as u32;
             t.parts.push(Part {
                 mesh: m as u32,
@@ -276,12 +306,35 @@ impl SphereTree {
         t.inner_c.shrink_to_fit();
         t.inner_r.shrink_to_fit();
         t.inner_leaves.shrink_to_fit();
+        t.inner_kids.shrink_to_fit();
         t.leaf_c.shrink_to_fit();
         t.leaf_r.shrink_to_fit();
         t.leaf_tris.shrink_to_fit();
         t.tris.shrink_to_fit();
         t.parts.shrink_to_fit();
         t
+    }
+
+    /// Appends the binary tree over leaves `l..e` in preorder; returns its root.
+    fn push_binary(&mut self, l: u32, e: u32, cluster: u32) -> u32 {
+        let k = self.inner_leaves.len() as u32;
+        self.inner_leaves.push([l, e]);
+        self.inner_kids.push([NO_KID; 2]);
+        if e - l > cluster {
+            let mid = l + (e - l) / 2;
+            let a = self.push_binary(l, mid, cluster);
+            let b = self.push_binary(mid, e, cluster);
+            self.inner_kids[k as usize] = [a, b];
+        }
+        k
+    }
+
+    /// The inner spheres hanging from part `p` directly: all of them (flat), or the root.
+    pub fn top(&self, p: &Part) -> std::ops::Range<u32> {
+        match self.cfg.map(|c| c.levels) {
+            Some(Levels::Binary) if !p.inner.is_empty() => p.inner.start..p.inner.start + 1,
+            _ => p.inner.clone(),
+        }
     }
 
     /// Updates for what changed in `scene` since the tree was built or last updated: rigid
@@ -339,12 +392,23 @@ impl SphereTree {
     /// Recomputes part `p`'s inner spheres and part sphere from its leaves (local frame).
     fn refit_part(&mut self, p: usize) {
         let part = &self.parts[p];
-        for k in part.inner.clone() {
-            let [l, e] = self.inner_leaves[k as usize];
-            let (c, r) =
-                parent_sphere((l..e).map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])));
-            self.inner_c[k as usize] = c;
-            self.inner_r[k as usize] = r;
+        // Reverse preorder: children before their parent.
+        for k in part.inner.clone().rev() {
+            let k = k as usize;
+            let (c, r) = match self.inner_kids[k] {
+                [NO_KID, _] => {
+                    let [l, e] = self.inner_leaves[k];
+                    parent_sphere(
+                        (l..e).map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])),
+                    )
+                }
+                kids => parent_sphere(
+                    kids.iter()
+                        .map(|&q| (self.inner_c[q as usize], self.inner_r[q as usize])),
+                ),
+            };
+            self.inner_c[k] = c;
+            self.inner_r[k] = r;
         }
         let leaves = part.leaves.clone();
         let (c, r) = if part.inner.is_empty() {
@@ -355,8 +419,7 @@ impl SphereTree {
             )
         } else {
             parent_sphere(
-                part.inner
-                    .clone()
+                self.top(part)
                     .map(|k| (self.inner_c[k as usize], self.inner_r[k as usize])),
             )
         };
@@ -421,6 +484,7 @@ impl SphereTree {
             + self.inner_c.capacity() * 12
             + self.inner_r.capacity() * 4
             + self.inner_leaves.capacity() * 8
+            + self.inner_kids.capacity() * 8
             + self.leaf_c.capacity() * 12
             + self.leaf_r.capacity() * 4
             + self.leaf_tris.capacity() * 8
@@ -435,6 +499,28 @@ impl SphereTree {
         for (pi, p) in self.parts.iter().enumerate() {
             let scale = p.sigma * p.extent + Vec3::from(p.xf.translation).abs().max_element();
             let e = 4.0 * SLACK * scale;
+            // Inner spheres hold the leaves below them (local frame), and their children.
+            for k in p.inner.clone() {
+                let k = k as usize;
+                let (ck, rk) = (self.inner_c[k], self.inner_r[k] * (1.0 + 1e-6) + e);
+                let [l0, l1] = self.inner_leaves[k];
+                if l0 >= l1 || l0 < p.leaves.start || l1 > p.leaves.end {
+                    return Err(format!("part {pi}: inner {k} has leaves {l0}..{l1}"));
+                }
+                for l in l0..l1 {
+                    let l = l as usize;
+                    if (self.leaf_c[l] - ck).length() + self.leaf_r[l] > rk {
+                        return Err(format!("part {pi}: leaf {l} outside inner sphere {k}"));
+                    }
+                }
+                let [a, b] = self.inner_kids[k];
+                if a != NO_KID {
+                    let (ka, kb) = (self.inner_leaves[a as usize], self.inner_leaves[b as usize]);
+                    if ka[0] != l0 || ka[1] != kb[0] || kb[1] != l1 {
+                        return Err(format!("part {pi}: inner {k}'s children split it wrongly"));
+                    }
+                }
+            }
             for l in p.leaves.clone() {
                 let c = p.xf.transform_point3(self.leaf_c[l as usize]);
                 let r = p.sigma * self.leaf_r[l as usize] + e;

@@ -4,7 +4,7 @@
 //! tested against the leaf's triangles with the shared triangle test.
 
 use super::{random, Config, Counts};
-use crate::accel::spheres::{SphereTree, SLACK};
+use crate::accel::spheres::{SphereTree, MAX_DEPTH, NO_KID, SLACK};
 use crate::geom::intersect_triangle;
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
 use crate::rays::{RayBatch, MISS};
@@ -67,6 +67,9 @@ pub struct Scratch {
     rows: PlaneFan,
     cols: PlaneFan,
     frames: Vec<Frame>,
+    /// Depth cull of the current group: every ray has `tmin >= 0` and a direction `u.z > 0` in
+    /// the grid frame, so every point a ray can report lies in `0 <= z <= zmax`.
+    depth: Option<f32>,
 }
 
 impl Scratch {
@@ -82,6 +85,7 @@ impl Scratch {
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
             frames: Vec::new(),
+            depth: None,
         }
     }
 
@@ -155,6 +159,25 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
         *u = Vec3::new(u.dot(vx), u.dot(vy), u.dot(vz));
     }
     Some((o, [vx, vy, vz]))
+}
+
+/// The depth cull's far bound: the largest grid-frame depth `tmax · |d| · u.z` a ray of the
+/// group reaches (infinite for unbounded rays), or `None` when a ray has `tmin < 0` or a
+/// direction not clearly ahead (`u.z <= 1e-3`), where depth says nothing.
+fn depth_range(rays: &RayBatch, g: GroupSpec, units: &[Vec3]) -> Option<f32> {
+    let mut zmax = 0.0f32;
+    for i in 0..g.rows {
+        for j in 0..g.cols {
+            let r = g.ray(i, j);
+            let uz = units[i * g.cols + j].z;
+            if !(rays.tmin[r] >= 0.0 && uz > 1e-3) {
+                return None;
+            }
+            let far = rays.tmax[r] * rays.dir(r).length() * uz;
+            zmax = zmax.max(far * (1.0 + 1e-5));
+        }
+    }
+    Some(zmax)
 }
 
 /// Tests one fan against a circle (2D centre `c`, plane bound `bound`), testing only planes of
@@ -257,6 +280,13 @@ fn sphere(
     n: &mut Counts,
 ) -> Option<(u64, u64)> {
     n.spheres_visited += 1;
+    if let Some(zmax) = s.depth {
+        // Grid-frame depth of what the sphere holds, widened by the frame's rounding margin.
+        if c.z + r + e < 0.0 || c.z - r - e > zmax {
+            n.depth_culled += 1;
+            return None;
+        }
+    }
     let dist = c.length();
     let rb = fan_bound(r, dist, s.rows.slack, e);
     let rm = family(&s.rows, (c.y, c.z), rb, e, parent.0, cfg, n);
@@ -302,6 +332,11 @@ pub fn trace(
     n.groups += 1;
     n.group_rays += (g.rows * g.cols) as u64;
     let cols = g.cols;
+    s.depth = if cfg.depth_cull {
+        depth_range(rays, g, &s.g)
+    } else {
+        None
+    };
     let gd = std::mem::take(&mut s.g);
     s.rows.fit(g.rows, cols, |i, j| {
         let u = gd[i * cols + j];
@@ -476,25 +511,44 @@ pub fn trace(
                 }
             }
         } else {
-            for k in part.inner.clone() {
-                let k = k as usize;
-                let Some(km) = sphere(
-                    s,
-                    f.apply(tree.inner_c[k]),
-                    tree.inner_r[k] * f.sigma,
-                    f.e,
-                    pm,
-                    cfg,
-                    n,
-                ) else {
-                    continue;
-                };
-                let [l0, l1] = tree.inner_leaves[k];
-                for l in l0..l1 {
-                    leaf(l as usize, s, km, n, &mut out, &mut live);
-                }
-                if live == 0 {
-                    return;
+            // Inner spheres depth first, each tested by the planes its parent hit (flat: every
+            // top sphere is a bottom one); a fixed stack, deep enough for any binary tree over
+            // u32 leaves.
+            let mut stack = [(0u32, (0u64, 0u64)); MAX_DEPTH + 1];
+            for top in tree.top(part) {
+                stack[0] = (top, pm);
+                let mut sp = 1;
+                while sp > 0 {
+                    sp -= 1;
+                    let (k, mk) = stack[sp];
+                    let k = k as usize;
+                    let Some(km) = sphere(
+                        s,
+                        f.apply(tree.inner_c[k]),
+                        tree.inner_r[k] * f.sigma,
+                        f.e,
+                        mk,
+                        cfg,
+                        n,
+                    ) else {
+                        continue;
+                    };
+                    match tree.inner_kids[k] {
+                        [NO_KID, _] => {
+                            let [l0, l1] = tree.inner_leaves[k];
+                            for l in l0..l1 {
+                                leaf(l as usize, s, km, n, &mut out, &mut live);
+                            }
+                            if live == 0 {
+                                return;
+                            }
+                        }
+                        [a, b] => {
+                            stack[sp] = (b, km);
+                            stack[sp + 1] = (a, km);
+                            sp += 2;
+                        }
+                    }
                 }
             }
         }

@@ -36,9 +36,16 @@
 //! culling=false tree=false`, the paper's "All Plane".
 //!
 //! **Ours, where the paper is silent** (measured in BENCHMARKS.md § RTRPS):
-//! - the leaves (Morton runs of `leaf_size` triangles), inner spheres (`cluster` leaves), leaf
+//! - the leaves (Morton runs of `leaf_size` triangles), inner spheres (`cluster` leaves, in a
+//!   binary tree over the part's leaves by default, `levels`), leaf
 //!   centre rule (`centre`), and the √3 radius that makes spheres bound what the box-gated
 //!   triangle test can report (see `accel::spheres`);
+//! - the depth cull (`depth_cull`): a hit row and a hit column meet in the whole line through
+//!   the origin, so the planes alone keep every sphere on a ray's backward extension (for
+//!   shadow grids from a surface, the body beneath it); when every ray of a group has
+//!   `tmin >= 0` and points ahead of the grid frame (`u.z > 1e-3`), a sphere wholly behind the
+//!   origin or wholly past every ray's end (`tmax·|d|·u.z`) is culled before any plane test,
+//!   with the frame's rounding margin (BENCHMARKS.md § RTRPS: 5.3× on the bunny's shadow grids);
 //! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
 //!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
 //! - §3.2's common-origin and aligned ray-plane triangle forms are not implemented: the exactness
@@ -50,7 +57,7 @@
 mod group;
 mod random;
 
-use crate::accel::spheres::{BuildConfig, Centre, SphereTree};
+use crate::accel::spheres::{BuildConfig, Centre, Levels, SphereTree};
 use crate::error::{Error, Result};
 use crate::rays::{HitBatch, RayBatch, RayLayout};
 use crate::scene::{Change, Scene, Stamp, TriangleSoup};
@@ -80,6 +87,13 @@ pub struct Config {
     pub cluster: usize,
     /// Leaf centre: `box` (centre of its vertices' box) or `mean`. Default `box`.
     pub centre: Centre,
+    /// Cull spheres wholly behind a group's origin or beyond all its rays' ends before any plane
+    /// test (ours: a row plane and a column plane meet in a whole line, the ray's backward
+    /// extension included). Default true.
+    pub depth_cull: bool,
+    /// Inner spheres: `binary` (a binary tree over each part's leaves, bottom spheres of at most
+    /// `cluster` leaves) or `flat` (one level of `cluster`-leaf spheres). Default `binary`.
+    pub levels: Levels,
     /// Tile side for pinhole images (1..=64). Default 16.
     pub packet: usize,
     /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
@@ -107,6 +121,8 @@ impl Default for Config {
             leaf_size: 2,
             cluster: 16,
             centre: Centre::Box,
+            levels: Levels::Binary,
+            depth_cull: true,
             packet: 16,
             grid_side: 0,
         }
@@ -139,6 +155,7 @@ impl Config {
             leaf_size: self.leaf_size,
             cluster: self.cluster,
             centre: self.centre,
+            levels: self.levels,
         }
     }
 }
@@ -170,6 +187,14 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "leaf sphere centre: box (of its vertices) or mean",
     },
     OptionDoc {
+        key: "depth_cull",
+        doc: "cull spheres behind a group's origin or past its rays' ends (ours)",
+    },
+    OptionDoc {
+        key: "levels",
+        doc: "inner spheres: binary (a tree over each part's leaves) or flat (one level)",
+    },
+    OptionDoc {
         key: "packet",
         doc: "tile side for pinhole images (1..=64)",
     },
@@ -187,11 +212,15 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "all planes",
-        opts: &[("culling", "false"), ("tree", "false")],
+        opts: &[
+            ("culling", "false"),
+            ("tree", "false"),
+            ("depth_cull", "false"),
+        ],
     },
     Preset {
-        name: "culling only",
-        opts: &[("tree", "false")],
+        name: "culling only, flat inner spheres",
+        opts: &[("tree", "false"), ("levels", "flat")],
     },
     Preset {
         name: "tree only, mean centres, no inner spheres",
@@ -232,6 +261,8 @@ crate::counters! {
         spheres_visited,
         /// Spheres the wedge test culled before any inner plane was tested.
         spheres_culled,
+        /// Spheres wholly behind the group's origin or beyond every ray's end (`depth_cull`).
+        depth_culled,
         /// Rays reproduced from a hit row and a hit column at a leaf.
         rays_reproduced,
         /// Ray/sphere tests of random rays.

@@ -5,7 +5,7 @@
 //! without sphere culls (every triangle of it tested).
 
 use super::Counts;
-use crate::accel::spheres::{Part, SphereTree, SLACK};
+use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
 use crate::geom::intersect_triangle;
 use crate::geom::sphere_plane::ray_sphere;
 use crate::rays::{RayBatch, MISS};
@@ -80,15 +80,32 @@ fn walk(
             }
         }
     } else {
-        for k in p.inner.clone() {
-            let k = k as usize;
-            if !test(tree.inner_c[k], tree.inner_r[k], tmax, n) {
-                continue;
-            }
-            let [l0, l1] = tree.inner_leaves[k];
-            for l in l0 as usize..l1 as usize {
-                if test(tree.leaf_c[l], tree.leaf_r[l], tmax, n) {
-                    tmax = leaf(l, tmax)?;
+        // Inner spheres depth first (flat: every top sphere is a bottom one); a fixed stack,
+        // deep enough for any binary tree over u32 leaves.
+        let mut stack = [0u32; MAX_DEPTH + 1];
+        for top in tree.top(p) {
+            stack[0] = top;
+            let mut sp = 1;
+            while sp > 0 {
+                sp -= 1;
+                let k = stack[sp] as usize;
+                if !test(tree.inner_c[k], tree.inner_r[k], tmax, n) {
+                    continue;
+                }
+                match tree.inner_kids[k] {
+                    [NO_KID, _] => {
+                        let [l0, l1] = tree.inner_leaves[k];
+                        for l in l0 as usize..l1 as usize {
+                            if test(tree.leaf_c[l], tree.leaf_r[l], tmax, n) {
+                                tmax = leaf(l, tmax)?;
+                            }
+                        }
+                    }
+                    [a, b] => {
+                        stack[sp] = b;
+                        stack[sp + 1] = a;
+                        sp += 2;
+                    }
                 }
             }
         }
