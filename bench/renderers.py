@@ -148,7 +148,7 @@ def embree(a):
     work = [("Table 4, bunny 256², 16×16 light samples", bunny,
              ["--integrator", "distribution", "--width", "256", "--height", "256",
               "--light-samples", "16", "--area-light", "-0.017,0.35,0.0,0.05,1"],
-             ["bvh", "dacrt", "kdtree", "rtt"], medium),
+             ["bvh", "dacrt", "kdtree", "rtt", "rtrps"], medium),
             ("instant radiosity, Cornell box, 10K VPLs", cornell, ir,
              ["naive", "bvh", "dacrt", "kdtree"], medium),
             ("instant radiosity, Sponza, 10K VPLs", sponza,

@@ -81,9 +81,10 @@ pub struct Config {
     pub culling: bool,
     /// Binary-tree plane order (§3.1.3). Default true.
     pub tree: bool,
-    /// Triangles per leaf sphere (1..=64). Default 2.
+    /// Triangles per leaf sphere (1..=64). Default 1 (BENCHMARKS.md § RTRPS: leaves of 1 and
+    /// bottom spheres of 8 leaves were fastest on the bunny's shadow grids).
     pub leaf_size: usize,
-    /// Leaves per inner sphere (0: leaves hang from the part, the paper's depth 3). Default 16.
+    /// Leaves per inner sphere (0: leaves hang from the part, the paper's depth 3). Default 8.
     pub cluster: usize,
     /// Leaf centre: `box` (centre of its vertices' box) or `mean`. Default `box`.
     pub centre: Centre,
@@ -94,7 +95,7 @@ pub struct Config {
     /// Inner spheres: `binary` (a binary tree over each part's leaves, bottom spheres of at most
     /// `cluster` leaves) or `flat` (one level of `cluster`-leaf spheres). Default `binary`.
     pub levels: Levels,
-    /// Tile side for pinhole images (1..=64). Default 16.
+    /// Tile side for pinhole images (1..=64). Default 8.
     pub packet: usize,
     /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
     /// its layout (tests). Default 0.
@@ -118,8 +119,8 @@ impl Default for Config {
             mode: Mode::Planes,
             culling: true,
             tree: true,
-            leaf_size: 2,
-            cluster: 16,
+            leaf_size: 1,
+            cluster: 8,
             centre: Centre::Box,
             levels: Levels::Binary,
             depth_cull: true,
@@ -227,8 +228,8 @@ pub const PRESETS: &[Preset] = &[
         opts: &[("culling", "false"), ("centre", "mean"), ("cluster", "0")],
     },
     Preset {
-        name: "any batch as 3x3 groups, leaves of one",
-        opts: &[("grid_side", "3"), ("leaf_size", "1")],
+        name: "any batch as 3x3 groups, leaves of two",
+        opts: &[("grid_side", "3"), ("leaf_size", "2")],
     },
     Preset {
         name: "any batch as 8x8 groups",
