@@ -53,6 +53,22 @@ fn grids(origins: &[Vec3], axis: Vec3, side: usize, spread: f32) -> RayBatch {
     b
 }
 
+/// Closest hits and work counters of `rtrps` with `opts` on `rays`.
+fn closest_with(
+    scene: &Scene,
+    rays: &RayBatch,
+    opts: &[(&str, &str)],
+) -> (raysift::HitBatch, raysift::tracer::Counters) {
+    let opts: Vec<(String, String)> = opts
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    let mut t = tracers::create("rtrps", &opts).unwrap();
+    t.prepare(scene).unwrap();
+    let (h, st) = t.intersect_timed(scene, rays).unwrap();
+    (h, st.work)
+}
+
 fn scene_of(name: &str, tris: &[[Vec3; 3]]) -> Scene {
     let positions = tris.iter().flatten().copied().collect();
     let indices = (0..tris.len() as u32)
@@ -191,16 +207,7 @@ fn depth_cull_and_binary_levels_remove_work() {
         .map(|k| Vec3::new(0.5, k as f32 * 0.05 - 0.3, 0.1))
         .collect();
     let rays = grids(&origins, -Vec3::X, 16, 0.3);
-    let run = |opts: &[(&str, &str)]| {
-        let opts: Vec<(String, String)> = opts
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.to_string()))
-            .collect();
-        let mut t = tracers::create("rtrps", &opts).unwrap();
-        t.prepare(&scene).unwrap();
-        let (h, st) = t.intersect_timed(&scene, &rays).unwrap();
-        (h, st.work)
-    };
+    let run = |opts: &[(&str, &str)]| closest_with(&scene, &rays, opts);
     let (h_off, off) = run(&[("depth_cull", "false")]);
     let (h_on, on) = run(&[]);
     let (h_flat, flat) = run(&[("levels", "flat")]);
@@ -365,16 +372,7 @@ fn counters_split_plane_tests() {
         .map(|k| Vec3::new(3.0, k as f32 * 0.1 - 1.0, 0.5))
         .collect();
     let rays = grids(&origins, -Vec3::X, 16, 0.4);
-    let run = |opts: &[(&str, &str)]| {
-        let opts: Vec<(String, String)> = opts
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.to_string()))
-            .collect();
-        let mut t = tracers::create("rtrps", &opts).unwrap();
-        t.prepare(&scene).unwrap();
-        let (h, st) = t.intersect_timed(&scene, &rays).unwrap();
-        (h, st.work)
-    };
+    let run = |opts: &[(&str, &str)]| closest_with(&scene, &rays, opts);
     let (h_all, all) = run(&[("culling", "false"), ("tree", "false")]);
     let (h_cull, cull) = run(&[("tree", "false")]);
     let (h_both, both) = run(&[]);

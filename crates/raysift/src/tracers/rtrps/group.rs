@@ -54,6 +54,20 @@ impl Frame {
     fn apply(&self, p: Vec3) -> Vec3 {
         Vec3::new(self.m[0].dot(p), self.m[1].dot(p), self.m[2].dot(p)) + self.b
     }
+
+    /// [`sphere`] for a sphere of the part (local centre `c`, local radius `r`).
+    #[inline]
+    fn sphere(
+        &self,
+        s: &Scratch,
+        c: Vec3,
+        r: f32,
+        parent: (u64, u64),
+        cfg: &Config,
+        n: &mut Counts,
+    ) -> Option<(u64, u64)> {
+        sphere(s, self.apply(c), r * self.sigma, self.e, parent, cfg, n)
+    }
 }
 
 /// Buffers reused by every group of a chunk.
@@ -407,15 +421,7 @@ pub fn trace(
     };
     for (pi, part) in tree.parts.iter().enumerate() {
         let f = s.frames[pi];
-        let Some(pm) = sphere(
-            s,
-            f.apply(part.centre),
-            part.radius * f.sigma,
-            f.e,
-            pm0,
-            cfg,
-            n,
-        ) else {
+        let Some(pm) = f.sphere(s, part.centre, part.radius, pm0, cfg, n) else {
             continue;
         };
         let mut leaf = |l: usize,
@@ -424,15 +430,7 @@ pub fn trace(
                         n: &mut Counts,
                         out: &mut Out<'_, '_>,
                         live: &mut usize| {
-            let Some((rm, cm)) = sphere(
-                s,
-                f.apply(tree.leaf_c[l]),
-                tree.leaf_r[l] * f.sigma,
-                f.e,
-                pm,
-                cfg,
-                n,
-            ) else {
+            let Some((rm, cm)) = f.sphere(s, tree.leaf_c[l], tree.leaf_r[l], pm, cfg, n) else {
                 return;
             };
             let [t0, t1] = tree.leaf_tris[l];
@@ -522,15 +520,7 @@ pub fn trace(
                     sp -= 1;
                     let (k, mk) = stack[sp];
                     let k = k as usize;
-                    let Some(km) = sphere(
-                        s,
-                        f.apply(tree.inner_c[k]),
-                        tree.inner_r[k] * f.sigma,
-                        f.e,
-                        mk,
-                        cfg,
-                        n,
-                    ) else {
+                    let Some(km) = f.sphere(s, tree.inner_c[k], tree.inner_r[k], mk, cfg, n) else {
                         continue;
                     };
                     match tree.inner_kids[k] {
