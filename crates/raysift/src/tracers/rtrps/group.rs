@@ -177,7 +177,9 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
 
 /// The depth cull's far bound: the largest grid-frame depth `tmax · |d| · u.z` a ray of the
 /// group reaches (infinite for unbounded rays), or `None` when a ray has `tmin < 0` or a
-/// direction not clearly ahead (`u.z <= 1e-3`), where depth says nothing.
+/// direction not clearly ahead (`u.z <= 1e-3`), where depth says nothing. `u.z` is an f32
+/// component of a unit vector in an f32 frame, off by a few 1e-7 at most: the bound takes
+/// `u.z + 1e-6` (then true `u.z > 0` too), and `1e-5` relative for `|d|` and the products.
 fn depth_range(rays: &RayBatch, g: GroupSpec, units: &[Vec3]) -> Option<f32> {
     let mut zmax = 0.0f32;
     for i in 0..g.rows {
@@ -187,7 +189,7 @@ fn depth_range(rays: &RayBatch, g: GroupSpec, units: &[Vec3]) -> Option<f32> {
             if !(rays.tmin[r] >= 0.0 && uz > 1e-3) {
                 return None;
             }
-            let far = rays.tmax[r] * rays.dir(r).length() * uz;
+            let far = rays.tmax[r] * rays.dir(r).length() * (uz + 1e-6);
             zmax = zmax.max(far * (1.0 + 1e-5));
         }
     }
