@@ -18,8 +18,8 @@
 //! depth 3), either hanging from the part in one level ([`Levels::Flat`]) or as a binary tree
 //! over the part's Morton run, halved down to runs of at most `cluster` leaves
 //! ([`Levels::Binary`], ours: a flat level makes every group test every inner sphere of a
-//! visible part). A leaf's centre is the centre of its vertices' box ([`Centre::Box`]) or their mean
-//! ([`Centre::Mean`]); measured in BENCHMARKS.md § RTRPS.
+//! visible part). A leaf's centre is the centre of its vertices' box ([`Centre::Box`]) or
+//! their mean ([`Centre::Mean`]); measured in BENCHMARKS.md § RTRPS.
 //!
 //! **Radii are exact bounds of what the shared triangle test can report.** A hit of
 //! `geom::intersect_triangle` lies in the triangle's world bounding box (the box gate puts it
