@@ -25,7 +25,7 @@ use rayon::prelude::*;
 /// the same bit for bit. sphere:1M, one thread, 4 alternating pairs of runs: build CPU time
 /// 0.87-1.05 s against 0.94-1.25 s, lower in every pair.)
 #[inline(always)]
-fn xyz(v: Vec4) -> Vec4 {
+pub(super) fn xyz(v: Vec4) -> Vec4 {
     Vec4::select(BVec4A::new(true, true, true, false), v, Vec4::ZERO)
 }
 
@@ -42,19 +42,19 @@ pub const MAX_BINS: usize = 32;
 
 /// A box in SIMD registers (`w` lanes unused), the build's working type.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Box4 {
-    min: Vec4,
-    max: Vec4,
+pub(super) struct Box4 {
+    pub(super) min: Vec4,
+    pub(super) max: Vec4,
 }
 
 impl Box4 {
-    const EMPTY: Box4 = Box4 {
+    pub(super) const EMPTY: Box4 = Box4 {
         min: Vec4::INFINITY,
         max: Vec4::NEG_INFINITY,
     };
 
     #[inline(always)]
-    fn union(self, o: Box4) -> Box4 {
+    pub(super) fn union(self, o: Box4) -> Box4 {
         Box4 {
             min: self.min.min(o.min),
             max: self.max.max(o.max),
@@ -62,20 +62,20 @@ impl Box4 {
     }
 
     #[inline(always)]
-    fn grow(self, p: Vec4) -> Box4 {
+    pub(super) fn grow(self, p: Vec4) -> Box4 {
         Box4 {
             min: self.min.min(p),
             max: self.max.max(p),
         }
     }
 
-    fn aabb(self) -> Aabb {
+    pub(super) fn aabb(self) -> Aabb {
         Aabb::new(self.min.truncate(), self.max.truncate())
     }
 
     /// Surface area (0 when empty), as [`Aabb::surface_area`].
     #[inline(always)]
-    fn area(self) -> f32 {
+    pub(super) fn area(self) -> f32 {
         let e = xyz(self.max) - xyz(self.min);
         if !(e.x >= 0.0 && e.y >= 0.0 && e.z >= 0.0) {
             return 0.0;
@@ -88,10 +88,10 @@ impl Box4 {
 /// place by the partitions). The scene guarantees finite coordinates, so the SIMD min/max never
 /// see a NaN in x, y, z; whatever `w` becomes in unions is never read.
 #[derive(Clone, Copy, Debug)]
-struct PrimRef(Box4);
+pub(super) struct PrimRef(pub(super) Box4);
 
 impl PrimRef {
-    fn new(b: Aabb, id: u32) -> Self {
+    pub(super) fn new(b: Aabb, id: u32) -> Self {
         PrimRef(Box4 {
             min: b.min.extend(f32::from_bits(id)),
             max: b.max.extend(0.0),
@@ -99,7 +99,7 @@ impl PrimRef {
     }
 
     #[inline(always)]
-    fn id(&self) -> u32 {
+    pub(super) fn id(&self) -> u32 {
         self.0.min.w.to_bits()
     }
 
@@ -108,7 +108,7 @@ impl PrimRef {
     /// (the id in `min.w` masked out, see [`xyz`]; `max.w` is 0), so centroid bounds and bin
     /// maps never hold a subnormal either.
     #[inline(always)]
-    fn centroid2(&self) -> Vec4 {
+    pub(super) fn centroid2(&self) -> Vec4 {
         xyz(self.0.min) + self.0.max
     }
 }
@@ -210,7 +210,7 @@ pub fn build(prims: &(impl BoxSource + ?Sized), cfg: &BuildConfig) -> Built {
 }
 
 /// Box of the triangles and box of their (doubled) centroids.
-fn bounds_of(refs: &[PrimRef]) -> (Box4, Box4) {
+pub(super) fn bounds_of(refs: &[PrimRef]) -> (Box4, Box4) {
     let (mut b, mut c) = (Box4::EMPTY, Box4::EMPTY);
     for r in refs {
         b = b.union(r.0);
@@ -221,13 +221,13 @@ fn bounds_of(refs: &[PrimRef]) -> (Box4, Box4) {
 
 /// Bins for the three axes: box and count of the triangles whose centroid falls in each.
 #[derive(Clone)]
-struct Bins {
+pub(super) struct Bins {
     bounds: [[Box4; MAX_BINS]; 3],
     count: [[u32; MAX_BINS]; 3],
 }
 
 impl Bins {
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         Self {
             bounds: [[Box4::EMPTY; MAX_BINS]; 3],
             count: [[0; MAX_BINS]; 3],
@@ -248,14 +248,14 @@ impl Bins {
 /// Maps doubled centroids to bin indices; the same arithmetic is used for binning and
 /// partitioning, so both agree on every triangle's side.
 #[derive(Clone, Copy)]
-struct BinMap {
+pub(super) struct BinMap {
     lo: Vec4,
     scale: Vec4,
     last: u32,
 }
 
 impl BinMap {
-    fn new(cbounds: Box4, nbins: usize) -> Self {
+    pub(super) fn new(cbounds: Box4, nbins: usize) -> Self {
         let ext = cbounds.max - cbounds.min;
         // Slightly below nbins / extent so the max centroid maps inside the last bin; axes with
         // zero extent get scale 0 (everything in bin 0, never chosen since one side is empty).
@@ -270,7 +270,7 @@ impl BinMap {
 
     /// Bin indices on the three axes (`w` meaningless).
     #[inline(always)]
-    fn bins(&self, c: Vec4) -> [usize; 3] {
+    pub(super) fn bins(&self, c: Vec4) -> [usize; 3] {
         // `as u32` saturates (NaN to 0), and min() keeps rounding at the top inside the range.
         let t = (c - self.lo) * self.scale;
         [
@@ -282,17 +282,17 @@ impl BinMap {
 }
 
 /// The chosen split of a node.
-struct Split {
-    axis: usize,
+pub(super) struct Split {
+    pub(super) axis: usize,
     /// Triangles in bins `<= bin` go left.
-    bin: usize,
-    left_bounds: Box4,
-    right_bounds: Box4,
-    left_count: usize,
+    pub(super) bin: usize,
+    pub(super) left_bounds: Box4,
+    pub(super) right_bounds: Box4,
+    pub(super) left_count: usize,
 }
 
-struct Ctx<'a> {
-    cfg: &'a BuildConfig,
+pub(super) struct Ctx<'a> {
+    pub(super) cfg: &'a BuildConfig,
 }
 
 impl Ctx<'_> {
@@ -417,7 +417,7 @@ impl Ctx<'_> {
 
     /// Best SAH split over all axes and bin boundaries: (cost, split), or `None` when every
     /// boundary leaves a side empty.
-    fn best_split(
+    pub(super) fn best_split(
         &self,
         refs: &[PrimRef],
         bounds: Box4,
@@ -514,7 +514,10 @@ impl Ctx<'_> {
 
 /// In-place partition: elements for which `left` holds come first. Returns the left count and the
 /// centroid bounds of both sides.
-fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> (usize, Box4, Box4) {
+pub(super) fn partition(
+    refs: &mut [PrimRef],
+    left: impl Fn(&PrimRef) -> bool,
+) -> (usize, Box4, Box4) {
     let (mut lc, mut rc) = (Box4::EMPTY, Box4::EMPTY);
     let mut i = 0;
     let mut j = refs.len();
@@ -533,7 +536,10 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> (usize, B
 
 /// Object-median split: by centroid along the longest centroid axis, or (all centroids equal)
 /// by position, which always terminates since both halves are non-empty.
-fn median_split(refs: &mut [PrimRef], cbounds: Box4) -> (usize, usize, Box4, Box4, Box4, Box4) {
+pub(super) fn median_split(
+    refs: &mut [PrimRef],
+    cbounds: Box4,
+) -> (usize, usize, Box4, Box4, Box4, Box4) {
     let mid = refs.len() / 2;
     let axis = cbounds.aabb().longest_axis();
     if (cbounds.max - cbounds.min)[axis] > 0.0 {

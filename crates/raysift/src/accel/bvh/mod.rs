@@ -12,13 +12,18 @@
 //!   deep trees fall back to object-median splits, so any input builds and the depth is bounded.
 //! - **Refit** (`refit.rs`): new boxes for the same tree after the primitives moved (a deforming
 //!   mesh with fixed topology), bottom-up in one pass over the pairs, O(nodes + primitives).
+//! - **Spatial splits** (`sbvh.rs`, [`Bvh::build_spatial`]): the SBVH of Stich et al. 2009, where
+//!   a node may cut space at a plane and reference a straddling primitive from both sides (by
+//!   its box cut at the plane, so the builder still sees boxes only); ids may then repeat.
 //! - **Layout**: [`NodePair`]s (two siblings in one 64-byte line, boxes as structure of arrays)
 //!   in depth-first order of their parents; pair 0 holds the root in slot 0.
 
 mod build;
 mod refit;
+mod sbvh;
 
 pub use build::{MAX_BINS, MAX_DEPTH};
+pub use sbvh::{SpatialConfig, SpatialStats};
 
 use crate::error::{Error, Result};
 use crate::geom::{Aabb, BoxPair};
@@ -237,8 +242,11 @@ pub struct Bvh {
     /// Node pairs in depth-first order of their parents: pair 0 holds the root in slot 0 (slot 1
     /// unused); empty when there are no primitives.
     pub pairs: Vec<NodePair>,
-    /// Primitive id at each leaf position.
+    /// Primitive id at each leaf position (each primitive once, or, after spatial splits, at
+    /// least once).
     pub ids: Vec<u32>,
+    /// Number of primitives the tree was built over.
+    pub prims: usize,
 }
 
 impl Bvh {
@@ -246,14 +254,31 @@ impl Bvh {
     pub fn build(prims: &(impl BoxSource + ?Sized), cfg: &BuildConfig) -> Result<Self> {
         cfg.check("bvh")?;
         let b = build::build(prims, cfg);
-        let mut bvh = Self {
-            pairs: b.pairs,
-            ids: b.ids,
-        };
+        Ok(Self::new(b.pairs, b.ids, prims.len()))
+    }
+
+    /// Builds with spatial splits ([`SpatialConfig`]; the object splits as [`Bvh::build`]).
+    pub fn build_spatial(
+        prims: &(impl BoxSource + ?Sized),
+        cfg: &BuildConfig,
+        sp: &SpatialConfig,
+    ) -> Result<(Self, SpatialStats)> {
+        cfg.check("bvh")?;
+        sp.check("bvh")?;
+        let (pairs, ids, stats) = sbvh::build(prims, cfg, sp);
+        Ok((Self::new(pairs, ids, prims.len()), stats))
+    }
+
+    fn new(mut pairs: Vec<NodePair>, mut ids: Vec<u32>, prims: usize) -> Self {
         // Collecting may over-allocate; the tree lives long, so hand the slack back.
-        bvh.pairs.shrink_to_fit();
-        bvh.ids.shrink_to_fit();
-        Ok(bvh)
+        pairs.shrink_to_fit();
+        ids.shrink_to_fit();
+        Self { pairs, ids, prims }
+    }
+
+    /// True when some primitive is referenced from more than one leaf (spatial splits).
+    pub fn has_split_references(&self) -> bool {
+        self.ids.len() > self.prims
     }
 
     /// Recomputes every box from the primitives' current boxes, keeping the tree (the same
@@ -338,13 +363,21 @@ impl Bvh {
     /// Checks the invariants against the primitives it was built from: pair offsets in range
     /// and in depth-first order (every pair reached exactly once from the root, a node's
     /// children's pair allocated before its left subtree's); every box contains its children's
-    /// boxes and its primitives' boxes; depth below [`MAX_DEPTH`]; leaf ranges tile `0..n` in
-    /// order, so every primitive id appears exactly once.
+    /// boxes; depth below [`MAX_DEPTH`]; leaf ranges tile the ids in order. Without split
+    /// references every primitive id appears exactly once and every leaf box contains its
+    /// primitives' boxes; with them, every primitive appears at least once, each of its leaves'
+    /// boxes meets its box, and the bounding box of those leaves' boxes clipped to its box is its
+    /// box (the parts a cut box was split into reach every face).
     pub fn validate(&self, prims: &(impl BoxSource + ?Sized)) -> Result<()> {
         let bad = |m: String| Err(Error::Invalid(format!("bvh invalid: {m}")));
         let n = prims.len();
-        if self.ids.len() != n {
-            return bad(format!("{} ids for {n} primitives", self.ids.len()));
+        let split = self.has_split_references();
+        if self.prims != n || self.ids.len() < n {
+            return bad(format!(
+                "{} ids for {n} primitives (built over {})",
+                self.ids.len(),
+                self.prims
+            ));
         }
         let Some(root) = self.root() else {
             return if n == 0 {
@@ -356,10 +389,19 @@ impl Bvh {
         let mut seen = vec![false; n];
         for (k, &id) in self.ids.iter().enumerate() {
             let id = id as usize;
-            if id >= n || std::mem::replace(&mut seen[id], true) {
+            if id >= n || (std::mem::replace(&mut seen[id], true) && !split) {
                 return bad(format!("id {id} at position {k} out of range or repeated"));
             }
         }
+        if let Some(id) = seen.iter().position(|s| !s) {
+            return bad(format!("primitive {id} is in no leaf"));
+        }
+        // With split references: per primitive, the union of its leaves' boxes clipped to its box.
+        let mut cover = if split {
+            vec![Aabb::EMPTY; n]
+        } else {
+            Vec::new()
+        };
         let mut next_pair = 1usize;
         let mut next_pos = 0usize;
         let mut stack = vec![(root, 0usize)];
@@ -370,13 +412,20 @@ impl Bvh {
             let b = node.bounds();
             if node.is_leaf() {
                 let (o, c) = (node.offset as usize, node.count as usize);
-                if o != next_pos || o + c > n {
+                if o != next_pos || o + c > self.ids.len() {
                     return bad(format!("leaf range {o}+{c}, expected start {next_pos}"));
                 }
                 next_pos += c;
                 for k in o..o + c {
-                    let tb = prims.bounds(self.ids[k] as usize);
-                    if !b.contains_box(&tb) {
+                    let id = self.ids[k] as usize;
+                    let tb = prims.bounds(id);
+                    if split {
+                        let part = b.intersection(tb);
+                        if part.is_empty() {
+                            return bad(format!("leaf box {b:?} misses primitive box {tb:?}"));
+                        }
+                        cover[id] = cover[id].union(part);
+                    } else if !b.contains_box(&tb) {
                         return bad(format!("leaf box {b:?} misses primitive box {tb:?}"));
                     }
                 }
@@ -396,11 +445,17 @@ impl Bvh {
                 stack.push((l, depth + 1));
             }
         }
-        if next_pair != self.pairs.len() || next_pos != n {
+        if next_pair != self.pairs.len() || next_pos != self.ids.len() {
             return bad(format!(
-                "reached {next_pair} of {} pairs, {next_pos} of {n} primitives",
-                self.pairs.len()
+                "reached {next_pair} of {} pairs, {next_pos} of {} ids",
+                self.pairs.len(),
+                self.ids.len()
             ));
+        }
+        for (id, c) in cover.iter().enumerate() {
+            if *c != prims.bounds(id) {
+                return bad(format!("the leaves of primitive {id} cover only {c:?}"));
+            }
         }
         Ok(())
     }

@@ -4,6 +4,8 @@
 //! over the pairs from last to first sees every child before its parent. The boxes are exact
 //! (unions of the primitives' own boxes), so traversal stays as conservative as after a build;
 //! only the tree's quality (SAH cost) degrades as primitives drift from where they were built.
+//! A tree with split references (spatial splits) gets its leaves' whole primitive boxes back:
+//! valid, and looser than the cut parts were.
 
 use super::{BoxSource, Bvh};
 use crate::geom::Aabb;
@@ -12,7 +14,7 @@ use rayon::prelude::*;
 /// Refits `bvh` to `prims` (same count and ids as at build time); returns the nodes refitted.
 pub(super) fn refit(bvh: &mut Bvh, prims: &(impl BoxSource + ?Sized)) -> usize {
     assert_eq!(
-        bvh.ids.len(),
+        bvh.prims,
         prims.len(),
         "refit needs the primitives the tree was built over"
     );

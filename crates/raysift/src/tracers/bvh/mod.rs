@@ -10,7 +10,9 @@
 //! recomputes its boxes ([`Bvh::refit`]) when the triangles moved but stayed the same
 //! triangles, and `auto` refits until the tree's SAH cost has grown by
 //! [`Config::rebuild_ratio`] over its last build, then rebuilds (refit vs rebuild is measured in
-//! BENCHMARKS.md, § BVH refit vs rebuild).
+//! BENCHMARKS.md, § BVH refit vs rebuild). **Spatial splits** ([`Config::spatial`], off by
+//! default): the SBVH build ([`Bvh::build_spatial`], Stich et al. 2009, with box-cut references,
+//! exact as `accel/bvh/sbvh.rs` proves); a triangle cut across leaves is copied into each.
 //!
 //! **Traversal**: as pbrt's `BVHAggregate` (flat depth-first array, fixed stack, near child
 //! first), except that both children's boxes are tested at their parent with one 4-wide SIMD slab
@@ -57,7 +59,7 @@
 mod tests;
 mod traverse;
 
-pub use crate::accel::bvh::{BuildConfig, Bvh, Node, NodePair, MAX_BINS, MAX_DEPTH};
+pub use crate::accel::bvh::{BuildConfig, Bvh, Node, NodePair, SpatialConfig, MAX_BINS, MAX_DEPTH};
 
 use crate::error::{Error, Result};
 use crate::rays::{HitBatch, RayBatch};
@@ -106,6 +108,14 @@ pub struct Config {
     /// With `update=auto`: rebuild once the refitted tree's SAH cost exceeds this multiple of
     /// the last build's (>= 1). Default 1.5.
     pub rebuild_ratio: f32,
+    /// Build with spatial splits (the SBVH: a node may cut space at a plane and reference a
+    /// straddling triangle from both sides). Default false: the plain binned SAH.
+    pub spatial: bool,
+    /// With `spatial`: try a plane where the object split's children overlap by more than this
+    /// fraction of the root's area (0..=1). Default 1e-5 (Stich et al.).
+    pub alpha: f32,
+    /// With `spatial`: extra references allowed, times the triangle count (>= 0). Default 1.
+    pub max_growth: f32,
 }
 
 /// [`Config::update`].
@@ -132,6 +142,9 @@ impl Default for Config {
             lanes: 0,
             update: Update::Rebuild,
             rebuild_ratio: 1.5,
+            spatial: false,
+            alpha: 1e-5,
+            max_growth: 1.0,
         }
     }
 }
@@ -148,9 +161,22 @@ impl Config {
         }
     }
 
+    /// The spatial splits' part, when [`Config::spatial`] is on.
+    pub fn spatial_config(&self) -> Option<SpatialConfig> {
+        self.spatial.then(|| SpatialConfig {
+            alpha: self.alpha,
+            max_growth: self.max_growth,
+        })
+    }
+
     /// Checks the ranges documented on the fields.
     pub fn check(&self) -> Result<()> {
         self.build_config().check("tracer bvh")?;
+        SpatialConfig {
+            alpha: self.alpha,
+            max_growth: self.max_growth,
+        }
+        .check("tracer bvh")?;
         if self.lanes > traverse::MAX_LANES {
             return Err(Error::Invalid(format!(
                 "tracer bvh: lanes must be in 0..={}, got {}",
@@ -178,6 +204,9 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "lanes", doc: "rays in flight per thread (0: 8 when the tree exceeds 4 MiB, else 1)" },
     OptionDoc { key: "update", doc: "on a scene change: rebuild, refit, or auto (refit until the SAH grows by rebuild_ratio)" },
     OptionDoc { key: "rebuild_ratio", doc: "update=auto: rebuild when the SAH cost exceeds this multiple of the last build's" },
+    OptionDoc { key: "spatial", doc: "SBVH build: spatial splits, straddling triangles referenced from both sides" },
+    OptionDoc { key: "alpha", doc: "spatial: try a plane where object-split children overlap by more than this fraction of the root's area" },
+    OptionDoc { key: "max_growth", doc: "spatial: extra references allowed, times the triangle count" },
 ];
 
 /// Configurations the conformance suite checks besides the defaults.
@@ -210,6 +239,19 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "refit",
         opts: &[("update", "refit")],
+    },
+    Preset {
+        name: "spatial splits everywhere, leaves of one",
+        opts: &[
+            ("spatial", "true"),
+            ("alpha", "0"),
+            ("max_leaf", "1"),
+            ("parallel_threshold", "64"),
+        ],
+    },
+    Preset {
+        name: "spatial splits, refit",
+        opts: &[("spatial", "true"), ("alpha", "0"), ("update", "refit")],
     },
     Preset {
         name: "auto update",
@@ -253,11 +295,11 @@ impl LeafBvh {
     pub fn validate(&self, scene: &Scene) -> Result<()> {
         let soup = scene.triangles();
         self.tree.validate(soup)?;
-        if self.tris.len() != soup.len() {
+        if self.tris.len() != self.tree.ids.len() {
             return Err(Error::Invalid(format!(
-                "bvh invalid: {} copies for {} triangles",
+                "bvh invalid: {} copies for {} references",
                 self.tris.len(),
-                soup.len()
+                self.tree.ids.len()
             )));
         }
         for (k, &id) in self.tree.ids.iter().enumerate() {
@@ -338,7 +380,14 @@ impl Tracer for BvhTracer {
             } else {
                 // Drop the old tree first so peak memory is one tree, not two.
                 self.bvh = LeafBvh::default();
-                self.bvh.tree = Bvh::build(soup, &self.cfg.build_config())?;
+                self.bvh.tree = match self.cfg.spatial_config() {
+                    None => Bvh::build(soup, &self.cfg.build_config())?,
+                    Some(sp) => {
+                        let (t, st) = Bvh::build_spatial(soup, &self.cfg.build_config(), &sp)?;
+                        built.spatial_splits = st.spatial_splits;
+                        t
+                    }
+                };
                 self.bvh.copy_triangles(soup);
                 self.built_sah = self.bvh.tree.sah_cost();
                 built.builds = 1;
@@ -347,6 +396,7 @@ impl Tracer for BvhTracer {
         self.stamp = scene.stamp();
         built.nodes = self.bvh.node_count() as u64;
         built.leaves = self.bvh.leaf_count() as u64;
+        built.references = self.bvh.ids.len() as u64;
         Ok(Stats::prepared(&built, self.bvh.bytes()))
     }
 
@@ -406,6 +456,10 @@ crate::counters! {
         nodes,
         /// Leaves.
         leaves,
+        /// Triangle references in the leaves (the triangle count, or more after spatial splits).
+        references,
+        /// Nodes split by a plane (`spatial`; 0 after a refit or a plain build).
+        spatial_splits,
     }
 }
 
