@@ -4,7 +4,7 @@ in the paper's measuring mode (n = inf, triangles counted, not tested), for the 
 kd-tree, cones at five apertures and 4/16/64 rays per pixel, averaged over three viewpoints.
 
     python3 bench/cone_tables.py [--size 128] [--timeout 90] [--scenes teapot,bunny,dragon,sponza]
-        [--out bench/results/cone-tables.jsonl]
+        [--structures kdtree,bvh,sbvh] [--out bench/results/cone-tables.jsonl]
 
 Runs `raysift cones ... --count --json` (the release CLI, target/release/raysift) once per
 (scene, structure, row, view) and appends each report to the JSONL file; a row already in the
@@ -106,7 +106,7 @@ def run(args):
             print(f"SKIPPED {name}: {path} absent", file=sys.stderr)
             continue
         lo, hi = bounds(path)
-        for structure in ["kdtree", "bvh"]:
+        for structure in args.structures.split(","):
             for kind, v in rows():
                 for vi, view in enumerate(views(name, lo, hi)):
                     k = (name, structure, kind, v, vi)
@@ -140,14 +140,15 @@ def markdown(args):
             reps.setdefault((r["scene_key"], r["structure"], r["row"][0], r["row"][1]), []).append(r)
     print("| structure | scene | row | nodes/px | tris/px | CPU ms (3 views) | paper nodes/px | paper inter./px | ratio nodes | ratio inter. |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for structure in ["kdtree", "bvh"]:
+    for structure in args.structures.split(","):
         for name in SCENES:
             for i, (kind, v) in enumerate(rows()):
                 rs = reps.get((name, structure, kind, v))
                 if not rs:
                     continue
                 label = f"{v} rays" if kind == "rays" else f"{v}°"
-                paper = PAPER.get((structure, name), [None] * 8)[i]
+                # The paper's BVH is an SBVH: its columns stand beside both of ours.
+                paper = PAPER.get(("bvh" if structure == "sbvh" else structure, name), [None] * 8)[i]
                 pn, pi = (f"{paper[1]:g}", f"{paper[2]:g}") if paper else ("-", "-")
                 if any("timeout_s" in r for r in rs) or len(rs) < 3:
                     print(f"| {structure} | {name} | {label} | over {rs[0].get('timeout_s', '?')} s | | | {pn} | {pi} | | |")
@@ -166,6 +167,8 @@ def main():
     p.add_argument("--timeout", type=float, default=90)
     p.add_argument("--scenes", default="teapot,bunny,sponza,dragon")
     p.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "cone-tables.jsonl"))
+    p.add_argument("--structures", default="kdtree,bvh",
+                   help="comma-separated: kdtree, bvh, sbvh (the BVH with spatial splits)")
     p.add_argument("--markdown", action="store_true")
     a = p.parse_args()
     markdown(a) if a.markdown else run(a)

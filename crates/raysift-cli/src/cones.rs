@@ -16,6 +16,8 @@ use std::time::Instant;
 enum StructureArg {
     /// The shared binned-SAH BVH (32 bins, at most 8 triangles per leaf, as the paper).
     Bvh,
+    /// The same BVH with spatial splits (the paper's SBVH; references cut by boxes).
+    Sbvh,
     /// The shared SAH kd-tree (pbrt-v3's build parameters, as the paper).
     Kdtree,
     /// Brute force: every triangle, the exact test (the ground truth).
@@ -182,11 +184,15 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
             bail!("--heatmap needs cones from the camera (--aperture or --rays-per-pixel), not --cones");
         }
         if format_of(p)? != Format::Png {
-            bail!("{}: a heatmap is a picture, not radiance: name it .png", p.display());
+            bail!(
+                "{}: a heatmap is a picture, not radiance: name it .png",
+                p.display()
+            );
         }
     }
     let structure = match a.structure {
         StructureArg::Bvh => Structure::Bvh,
+        StructureArg::Sbvh => Structure::Sbvh,
         StructureArg::Kdtree => Structure::Kdtree,
         StructureArg::Oracle => Structure::Oracle,
     };

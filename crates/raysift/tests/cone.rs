@@ -27,7 +27,21 @@ fn variants() -> Vec<Box<dyn ConeTracer>> {
     v.push(Box::new(ConeBvh::with_build(
         Traversal::Sorted,
         BoxTest::Improved,
+        small.clone(),
+    )));
+    // The SBVH: the paper's build with spatial splits, and planes tried everywhere with leaves
+    // of one (most cut references).
+    for b in [BoxTest::Basic, BoxTest::Improved] {
+        v.push(create(Structure::Sbvh, Traversal::Stack, b));
+    }
+    v.push(Box::new(ConeBvh::with_spatial(
+        Traversal::Sorted,
+        BoxTest::Improved,
         small,
+        raysift::accel::bvh::SpatialConfig {
+            alpha: 0.0,
+            max_growth: 4.0,
+        },
     )));
     // The kd-tree: the paper's (pbrt-v3) build with both orders, and our default build with
     // larger leaves (fewer, shallower splits).

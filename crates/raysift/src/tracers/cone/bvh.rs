@@ -16,7 +16,7 @@ use super::{
     offer, walk, BoxTest, ConeBatch, ConeCounts, ConeHits, ConeTracer, Nearest, Prepared, Query,
     Traversal, Walker,
 };
-use crate::accel::bvh::{BuildConfig, Bvh, Node, MAX_DEPTH};
+use crate::accel::bvh::{BuildConfig, Bvh, Node, SpatialConfig, MAX_DEPTH};
 use crate::error::Result;
 use crate::geom::ConeFrustum;
 use crate::scene::{Scene, Stamp, TriangleSoup};
@@ -31,11 +31,16 @@ crate::counters! {
         nodes,
         /// BVH leaves.
         leaves,
+        /// Triangle references in the leaves (more than the triangles after spatial splits).
+        references,
+        /// Nodes split by a plane (the SBVH build).
+        spatial_splits,
     }
 }
 
-/// The paper's build: 32 bins, at most 8 triangles per leaf (§4; an SAH BVH without the
-/// SBVH's spatial splits, see BENCHMARKS.md).
+/// The paper's build: 32 bins, at most 8 triangles per leaf (§4). [`ConeBvh::new`] builds it
+/// without spatial splits, [`ConeBvh::spatial`] with them (the paper's SBVH; references cut by
+/// boxes, `accel/bvh/sbvh.rs`), see BENCHMARKS.md.
 pub fn paper_build() -> BuildConfig {
     BuildConfig {
         bins: 32,
@@ -50,6 +55,7 @@ pub struct ConeBvh {
     traversal: Traversal,
     box_test: BoxTest,
     build: BuildConfig,
+    spatial: Option<SpatialConfig>,
     bvh: Bvh,
     stamp: Stamp,
 }
@@ -66,8 +72,27 @@ impl ConeBvh {
             traversal,
             box_test,
             build,
+            spatial: None,
             bvh: Bvh::default(),
             stamp: Stamp::default(),
+        }
+    }
+
+    /// The SBVH: [`paper_build`] with spatial splits (Stich et al.'s α = 10⁻⁵).
+    pub fn spatial(traversal: Traversal, box_test: BoxTest) -> Self {
+        Self::with_spatial(traversal, box_test, paper_build(), SpatialConfig::default())
+    }
+
+    /// With another build, with spatial splits.
+    pub fn with_spatial(
+        traversal: Traversal,
+        box_test: BoxTest,
+        build: BuildConfig,
+        spatial: SpatialConfig,
+    ) -> Self {
+        Self {
+            spatial: Some(spatial),
+            ..Self::with_build(traversal, box_test, build)
         }
     }
 
@@ -221,15 +246,30 @@ impl ConeTracer for ConeBvh {
             BoxTest::Basic => "basic",
             BoxTest::Improved => "improved",
         };
-        format!("bvh/{t}/{b}")
+        let s = if self.spatial.is_some() {
+            "sbvh"
+        } else {
+            "bvh"
+        };
+        format!("{s}/{t}/{b}")
     }
 
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
-        self.bvh = Bvh::build(scene.triangles(), &self.build)?;
+        let mut spatial_splits = 0;
+        self.bvh = match &self.spatial {
+            None => Bvh::build(scene.triangles(), &self.build)?,
+            Some(sp) => {
+                let (t, st) = Bvh::build_spatial(scene.triangles(), &self.build, sp)?;
+                spatial_splits = st.spatial_splits;
+                t
+            }
+        };
         self.stamp = scene.stamp();
         let built = BuiltCounts {
             nodes: self.bvh.node_count() as u64,
             leaves: self.bvh.leaf_count() as u64,
+            references: self.bvh.ids.len() as u64,
+            spatial_splits,
         };
         Ok(Stats::prepared(&built, self.bvh.bytes()))
     }

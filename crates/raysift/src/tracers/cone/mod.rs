@@ -438,6 +438,8 @@ pub enum Structure {
     Oracle,
     /// The shared binned-SAH BVH (`accel/bvh`).
     Bvh,
+    /// The same BVH built with spatial splits (the paper's SBVH, `accel/bvh/sbvh.rs`).
+    Sbvh,
     /// The shared SAH kd-tree (`accel/kdtree`).
     Kdtree,
 }
@@ -490,6 +492,7 @@ pub fn create(
     match structure {
         Structure::Oracle => Box::new(oracle::Oracle::default()),
         Structure::Bvh => Box::new(bvh::ConeBvh::new(traversal, box_test)),
+        Structure::Sbvh => Box::new(bvh::ConeBvh::spatial(traversal, box_test)),
         Structure::Kdtree => Box::new(kdtree::ConeKd::new(traversal)),
     }
 }
