@@ -94,6 +94,14 @@ def key(r):
     return (r["scene_key"], r["structure"], r["row"][0], r["row"][1], r["view"])
 
 
+def split_structure(s):
+    """`bvh[traversal_cost=4,max_leaf=8]` -> ("bvh", ["traversal_cost=4", "max_leaf=8"])."""
+    if "[" not in s:
+        return s, []
+    base, rest = s.split("[", 1)
+    return base, [o for o in rest.rstrip("]").split(";") if o]
+
+
 def run(args):
     done = set()
     if os.path.exists(args.out):
@@ -112,8 +120,11 @@ def run(args):
                     k = (name, structure, kind, v, vi)
                     if k in done:
                         continue
-                    cmd = [EXE, "cones", path, "--count", "--json", "--structure", structure,
+                    base, opts = split_structure(structure)
+                    cmd = [EXE, "cones", path, "--count", "--json", "--structure", base,
                            "--width", str(args.size), "--height", str(args.size)]
+                    for o in opts:
+                        cmd += ["--bvh", o]
                     cmd += ["--rays-per-pixel", str(v)] if kind == "rays" else ["--aperture", str(v)]
                     if view is not None:
                         cmd += ["--eye", ",".join(f"{x:.6g}" for x in view[0]),
@@ -148,7 +159,8 @@ def markdown(args):
                     continue
                 label = f"{v} rays" if kind == "rays" else f"{v}°"
                 # The paper's BVH is an SBVH: its columns stand beside both of ours.
-                paper = PAPER.get(("bvh" if structure == "sbvh" else structure, name), [None] * 8)[i]
+                base = split_structure(structure)[0]
+                paper = PAPER.get(("bvh" if base == "sbvh" else base, name), [None] * 8)[i]
                 pn, pi = (f"{paper[1]:g}", f"{paper[2]:g}") if paper else ("-", "-")
                 if any("timeout_s" in r for r in rs) or len(rs) < 3:
                     print(f"| {structure} | {name} | {label} | over {rs[0].get('timeout_s', '?')} s | | | {pn} | {pi} | | |")
@@ -168,7 +180,8 @@ def main():
     p.add_argument("--scenes", default="teapot,bunny,sponza,dragon")
     p.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "cone-tables.jsonl"))
     p.add_argument("--structures", default="kdtree,bvh",
-                   help="comma-separated: kdtree, bvh, sbvh (the BVH with spatial splits)")
+                   help="comma-separated: kdtree, bvh, sbvh (the BVH with spatial splits); a BVH "
+                        "may carry build options, semicolon-separated: 'bvh[traversal_cost=4]'")
     p.add_argument("--markdown", action="store_true")
     a = p.parse_args()
     markdown(a) if a.markdown else run(a)

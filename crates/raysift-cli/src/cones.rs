@@ -66,6 +66,11 @@ pub struct ConesArgs {
     /// Acceleration structure.
     #[arg(long, value_enum, default_value_t = StructureArg::Bvh)]
     structure: StructureArg,
+    /// Build options of --structure bvh or sbvh, KEY=VALUE, repeatable: bins, max_leaf,
+    /// traversal_cost, intersection_cost (defaults: the paper's 32 bins and at most 8 triangles
+    /// per leaf, SAH costs 1 and 1); with sbvh also alpha, max_growth (defaults 1e-5 and 1).
+    #[arg(long = "bvh", value_name = "KEY=VALUE")]
+    bvh: Vec<String>,
     /// Traversal order.
     #[arg(long, value_enum, default_value_t = TraversalArg::Stack)]
     traversal: TraversalArg,
@@ -114,6 +119,8 @@ struct ConesReport {
     nodes_per_pixel: f64,
     tri_encounters_per_pixel: f64,
     counters: raysift::tracer::Counters,
+    /// What the prepare built (nodes, leaves; the BVHs' references and spatial splits).
+    built: raysift::tracer::Counters,
     tracer_bytes: usize,
     /// The heatmap's scale (min, max, mean cost per pixel) when one was drawn.
     heatmap_scale: Option<HeatScale>,
@@ -212,9 +219,15 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
             count_only: false,
         }
     };
-    let mut tracer = cone::create(structure, traversal, box_test);
+    let mut tracer = match structure {
+        Structure::Bvh | Structure::Sbvh if !a.bvh.is_empty() => {
+            bvh_with(&a.bvh, structure == Structure::Sbvh, traversal, box_test)?
+        }
+        _ if !a.bvh.is_empty() => bail!("--bvh: only with --structure bvh or sbvh"),
+        _ => cone::create(structure, traversal, box_test),
+    };
     let t0 = Instant::now();
-    tracer.prepare(&scene)?;
+    let built = tracer.prepare(&scene)?.built;
     let prepare_ms = t0.elapsed().as_secs_f64() * 1e3;
     let mut hits = ConeHits::default();
     let mut runs = Vec::new();
@@ -258,6 +271,7 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
         nodes_per_pixel: per("nodes") * per_pixel as f64,
         tri_encounters_per_pixel: per("tri_encounters") * per_pixel as f64,
         counters: stats.work.clone(),
+        built,
         tracer_bytes: tracer.bytes(),
         heatmap_scale: heat,
     };
@@ -272,4 +286,49 @@ fn run_in_pool(a: &ConesArgs) -> Result<()> {
         eprintln!("raysift: note: no --out given, so no hits were written");
     }
     Ok(())
+}
+
+/// The cone BVH built with `--bvh KEY=VALUE` options over the paper's build.
+fn bvh_with(
+    opts: &[String],
+    spatial: bool,
+    traversal: Traversal,
+    box_test: BoxTest,
+) -> Result<Box<dyn cone::ConeTracer>> {
+    let mut build = cone::bvh::paper_build();
+    let mut sp = raysift::accel::bvh::SpatialConfig::default();
+    for o in opts {
+        let Some((k, v)) = o.split_once('=') else {
+            bail!("--bvh {o}: expected KEY=VALUE");
+        };
+        let num = |what: &str| -> Result<f64> {
+            v.parse::<f64>()
+                .map_err(|_| anyhow::anyhow!("--bvh {o}: {what} must be a number, got {v:?}"))
+        };
+        let int = |what: &str| -> Result<usize> {
+            v.parse::<usize>()
+                .map_err(|_| anyhow::anyhow!("--bvh {o}: {what} must be a whole number, got {v:?}"))
+        };
+        match k {
+            "bins" => build.bins = int(k)?,
+            "max_leaf" => build.max_leaf = int(k)?,
+            "traversal_cost" => build.traversal_cost = num(k)? as f32,
+            "intersection_cost" => build.intersection_cost = num(k)? as f32,
+            "alpha" | "max_growth" if !spatial => bail!("--bvh {o}: {k} needs --structure sbvh"),
+            "alpha" => sp.alpha = num(k)? as f32,
+            "max_growth" => sp.max_growth = num(k)? as f32,
+            _ => bail!(
+                "--bvh {o}: unknown key {k:?} (valid: bins, max_leaf, traversal_cost, intersection_cost, alpha, max_growth)"
+            ),
+        }
+    }
+    build.check("--bvh")?;
+    sp.check("--bvh")?;
+    Ok(if spatial {
+        Box::new(cone::bvh::ConeBvh::with_spatial(
+            traversal, box_test, build, sp,
+        ))
+    } else {
+        Box::new(cone::bvh::ConeBvh::with_build(traversal, box_test, build))
+    })
 }

@@ -265,3 +265,92 @@ fn bad_cones_are_clean_errors() {
     );
     assert!(!Path::new(&out).exists() && !Path::new(&heat).exists());
 }
+
+#[test]
+fn sbvh_and_bvh_options_equal_the_oracle_and_bad_options_fail() {
+    let d = tmp();
+    let view = [
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--aperture",
+        "2",
+        "--n",
+        "8",
+    ];
+    let (o, s, b) = (
+        p(d.path(), "o.npy"),
+        p(d.path(), "s.npy"),
+        p(d.path(), "b.npy"),
+    );
+    ok(&[
+        &["cones", "cornell", "--out", &o, "--structure", "oracle"][..],
+        &view,
+    ]
+    .concat());
+    let j = json(&ok(&[
+        &[
+            "cones",
+            "cornell",
+            "--out",
+            &s,
+            "--structure",
+            "sbvh",
+            "--bvh",
+            "alpha=0",
+            "--bvh",
+            "max_leaf=1",
+            "--json",
+        ][..],
+        &view,
+    ]
+    .concat()));
+    // The Cornell box's walls cross the small boxes' space: planes are taken and cut triangles.
+    let built = &j["built"];
+    assert!(built["spatial_splits"].as_u64().unwrap() > 0, "{built}");
+    assert!(built["references"].as_u64().unwrap() > j["triangles"].as_u64().unwrap());
+    ok(&[
+        &["cones", "cornell", "--out", &b, "--bvh", "traversal_cost=4"][..],
+        &view,
+    ]
+    .concat());
+    let want = records(&o);
+    assert!(!want.is_empty());
+    assert_eq!(records(&s), want);
+    assert_eq!(records(&b), want);
+    let out = p(d.path(), "x.npy");
+    for (opt, msg) in [
+        ("colour=red", "unknown key \"colour\""),
+        ("bins=many", "bins must be a whole number"),
+        ("bins=99", "bins must be in 2..=32"),
+        ("alpha", "expected KEY=VALUE"),
+        ("alpha=0", "alpha needs --structure sbvh"),
+    ] {
+        fails(
+            &[
+                &["cones", "sphere:50", "--out", &out, "--bvh", opt][..],
+                &view,
+            ]
+            .concat(),
+            msg,
+        );
+    }
+    fails(
+        &[
+            &[
+                "cones",
+                "sphere:50",
+                "--out",
+                &out,
+                "--structure",
+                "kdtree",
+                "--bvh",
+                "bins=4",
+            ][..],
+            &view,
+        ]
+        .concat(),
+        "only with --structure bvh or sbvh",
+    );
+}
