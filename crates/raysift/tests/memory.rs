@@ -90,6 +90,43 @@ fn bvh_is_nodes_plus_40_bytes_per_triangle() {
     }
 }
 
+/// With spatial splits the same layout holds per *reference* (a triangle cut across leaves has
+/// an id and a corner copy in each): 32 B per node + 40 B per reference, and at most
+/// `1 + max_growth` references per triangle.
+#[test]
+fn bvh_spatial_is_nodes_plus_40_bytes_per_reference() {
+    let big_and_small = {
+        // The Cornell box's walls tiled over a dense sphere: large triangles crossing small ones.
+        let cornell = procedural::cornell();
+        let mut meshes = cornell.meshes().to_vec();
+        meshes.extend(procedural::icosphere(20_000).meshes().iter().cloned());
+        Scene::from_meshes("cornell+sphere", meshes).unwrap()
+    };
+    for (s, growth) in [(big_and_small, 1.0f32), (procedural::soup(20_000, 4), 0.25)] {
+        let n = s.len();
+        let cfg = Config {
+            spatial: true,
+            max_growth: growth,
+            ..Config::default()
+        };
+        let mut t = BvhTracer::new(cfg).unwrap();
+        let st = t.prepare(&s).unwrap();
+        let (bytes, nodes, refs) = (t.bvh().bytes(), t.bvh().node_count(), t.bvh().ids.len());
+        assert!(refs > n, "{}: no reference was cut", s.name);
+        assert!(refs as f64 <= (1.0 + growth as f64) * n as f64, "{}: {refs} references", s.name);
+        assert_eq!(st.built.get("references"), refs as u64);
+        assert!(bytes >= 32 * nodes + 40 * refs, "{}", s.name);
+        assert!(bytes <= 32 * (nodes + 1) + 40 * refs + 64, "{}", s.name);
+        assert!(nodes < 2 * refs);
+        eprintln!(
+            "bvh spatial on {}: {:.1} B per triangle, {:.3} references per triangle",
+            s.name,
+            bytes as f64 / n as f64,
+            refs as f64 / n as f64
+        );
+    }
+}
+
 /// `rtrps` holds its sphere hierarchy: per leaf a centre, radius and triangle range (24 B), per
 /// inner sphere a centre, radius, leaf range and children (32 B), and the triangle ids in leaf
 /// order (4 B per triangle), plus a small per-part record. With the defaults (leaves of 1

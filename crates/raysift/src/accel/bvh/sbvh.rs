@@ -46,7 +46,9 @@
 //! reference of the triangle has `t*` in its box's interval, and the slab test is monotone in
 //! the box, so the leaf holding it and all its ancestors are entered.
 
-use super::build::{median_split, partition, BinMap, Box4, Ctx, PrimRef, MAX_BINS, MAX_SAH_DEPTH};
+use super::build::{
+    median_split, partition, BinMap, Bins, Box4, Ctx, PrimRef, MAX_BINS, MAX_SAH_DEPTH,
+};
 use super::{BoxSource, BuildConfig, Node, NodePair};
 use crate::error::{Error, Result};
 
@@ -151,6 +153,11 @@ fn flatten(t: Tree, pairs: &mut Vec<NodePair>, ids: &mut Vec<u32>) -> Node {
     }
 }
 
+thread_local! {
+    /// Each thread's bins for the object splits of its sequential nodes.
+    static BINS: std::cell::RefCell<Box<Bins>> = std::cell::RefCell::new(Box::new(Bins::new()));
+}
+
 struct Builder<'a> {
     ctx: Ctx<'a>,
     /// `alpha` times the root's area: spatial splits only above this overlap.
@@ -187,10 +194,15 @@ impl Builder<'_> {
         let cbounds = refs.iter().fold(Box4::EMPTY, |c, r| c.grow(r.centroid2()));
         let spread = (cbounds.max - cbounds.min).truncate().max_element() > 0.0;
         let sah = depth < MAX_SAH_DEPTH;
-        let object = if sah && spread {
-            self.ctx.best_split(&refs, bounds, cbounds, None)
-        } else {
-            None
+        let object = match (sah && spread, n >= cfg.parallel_threshold.max(2)) {
+            (false, _) => None,
+            // Large nodes bin in parallel; the others reuse their thread's bins (no
+            // allocation, no task per node; the same bins either way).
+            (true, true) => self.ctx.best_split(&refs, bounds, cbounds, None),
+            (true, false) => BINS.with(|b| {
+                self.ctx
+                    .best_split(&refs, bounds, cbounds, Some(&mut b.borrow_mut()))
+            }),
         };
         let overlap = object.as_ref().map_or(f32::INFINITY, |(_, s)| {
             let i = Box4 {

@@ -53,7 +53,11 @@
 //!   reads one contiguous run instead of gathering from the scene's soup);
 //!
 //! so about 77 B per triangle (measured on sphere:1M and soup:1M) on top of the scene's own 36 B
-//! soup. The build temporarily holds 32 B per triangle of primitive references.
+//! soup. The build temporarily holds 32 B per triangle of primitive references. With
+//! [`Config::spatial`] the ids and copies are per reference (a cut triangle has one in each of
+//! its leaves): 40 B per reference plus the nodes, at most `1 + max_growth` references per
+//! triangle (`tests/memory.rs`; Sponza 69.5 → 88.7 B per triangle, BENCHMARKS.md § "Cone
+//! tracing: the SBVH").
 
 #[cfg(test)]
 mod tests;
