@@ -113,7 +113,11 @@ fn bvh_spatial_is_nodes_plus_40_bytes_per_reference() {
         let st = t.prepare(&s).unwrap();
         let (bytes, nodes, refs) = (t.bvh().bytes(), t.bvh().node_count(), t.bvh().ids.len());
         assert!(refs > n, "{}: no reference was cut", s.name);
-        assert!(refs as f64 <= (1.0 + growth as f64) * n as f64, "{}: {refs} references", s.name);
+        assert!(
+            refs as f64 <= (1.0 + growth as f64) * n as f64,
+            "{}: {refs} references",
+            s.name
+        );
         assert_eq!(st.built.get("references"), refs as u64);
         assert!(bytes >= 32 * nodes + 40 * refs, "{}", s.name);
         assert!(bytes <= 32 * (nodes + 1) + 40 * refs + 64, "{}", s.name);

@@ -281,7 +281,7 @@ impl Builder<'_> {
         let mut best: Option<Plane> = None;
         for a in 0..3 {
             let (lo, hi) = (bounds.min[a], bounds.max[a]);
-            if !(hi > lo) {
+            if hi <= lo {
                 continue;
             }
             // Slab boundaries P[0] = lo < ... <= P[nb] = hi (non-decreasing in f32).

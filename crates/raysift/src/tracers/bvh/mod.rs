@@ -167,7 +167,7 @@ impl Config {
 
     /// The spatial splits' part, when [`Config::spatial`] is on.
     pub fn spatial_config(&self) -> Option<SpatialConfig> {
-        self.spatial.then(|| SpatialConfig {
+        self.spatial.then_some(SpatialConfig {
             alpha: self.alpha,
             max_growth: self.max_growth,
         })
