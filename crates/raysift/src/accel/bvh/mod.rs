@@ -366,8 +366,9 @@ impl Bvh {
     /// boxes; depth below [`MAX_DEPTH`]; leaf ranges tile the ids in order. Without split
     /// references every primitive id appears exactly once and every leaf box contains its
     /// primitives' boxes; with them, every primitive appears at least once, each of its leaves'
-    /// boxes meets its box, and the bounding box of those leaves' boxes clipped to its box is its
-    /// box (the parts a cut box was split into reach every face).
+    /// boxes meets its box, and those leaves' boxes cover its box: the bounding box of their
+    /// parts inside it is its box, and every point of a 5×5×5 lattice over its box (corners and
+    /// faces included) lies in one of them (a lost part shows as a gap).
     pub fn validate(&self, prims: &(impl BoxSource + ?Sized)) -> Result<()> {
         let bad = |m: String| Err(Error::Invalid(format!("bvh invalid: {m}")));
         let n = prims.len();
@@ -396,9 +397,9 @@ impl Bvh {
         if let Some(id) = seen.iter().position(|s| !s) {
             return bad(format!("primitive {id} is in no leaf"));
         }
-        // With split references: per primitive, the union of its leaves' boxes clipped to its box.
-        let mut cover = if split {
-            vec![Aabb::EMPTY; n]
+        // With split references: per primitive, its leaves' boxes clipped to its box.
+        let mut parts: Vec<Vec<Aabb>> = if split {
+            vec![Vec::new(); n]
         } else {
             Vec::new()
         };
@@ -424,7 +425,7 @@ impl Bvh {
                         if part.is_empty() {
                             return bad(format!("leaf box {b:?} misses primitive box {tb:?}"));
                         }
-                        cover[id] = cover[id].union(part);
+                        parts[id].push(part);
                     } else if !b.contains_box(&tb) {
                         return bad(format!("leaf box {b:?} misses primitive box {tb:?}"));
                     }
@@ -452,9 +453,24 @@ impl Bvh {
                 self.ids.len()
             ));
         }
-        for (id, c) in cover.iter().enumerate() {
-            if *c != prims.bounds(id) {
-                return bad(format!("the leaves of primitive {id} cover only {c:?}"));
+        for (id, ps) in parts.iter().enumerate() {
+            let b = prims.bounds(id);
+            let hull = ps.iter().fold(Aabb::EMPTY, |u, p| u.union(*p));
+            if hull != b {
+                return bad(format!("the leaves of primitive {id} reach only {hull:?}"));
+            }
+            if ps.len() > 1 {
+                const K: usize = 5;
+                let at = |i: usize, a: usize| {
+                    let f = i as f32 / (K - 1) as f32;
+                    (b.min[a] + (b.max[a] - b.min[a]) * f).clamp(b.min[a], b.max[a])
+                };
+                for (i, j, k) in (0..K * K * K).map(|x| (x % K, x / K % K, x / (K * K))) {
+                    let q = Vec3::new(at(i, 0), at(j, 1), at(k, 2));
+                    if !ps.iter().any(|p| p.contains(q)) {
+                        return bad(format!("the leaves of primitive {id} leave {q} uncovered"));
+                    }
+                }
             }
         }
         Ok(())
