@@ -9,7 +9,7 @@ use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
 use crate::tracers::kdtree::{walk, walk4, Best, Counters as KdCounters, StackEntry, Stacks};
-use glam::{DMat3, DVec3, Vec3, Vec4};
+use glam::{DMat3, DVec3, Vec4};
 
 /// Rows of pixels sharing one origin, as laid out in the batch: ray `base + (j·width + i)·samples
 /// + k` is sample `k` of pixel `(i, j)`, `j < rows`.
@@ -57,8 +57,6 @@ pub struct Scratch {
     pending: Vec<usize>,
     /// The list's triangles prepared for the tile's origin (four rays per test).
     tris: Vec<TriFromOrigin>,
-    /// The list's (distance key, id), nearest first (see `list_answers`).
-    keys: Vec<(f32, u32)>,
 }
 
 impl Scratch {
@@ -74,7 +72,6 @@ impl Scratch {
             best: Vec::with_capacity(rays),
             pending: Vec::with_capacity(rays),
             tris: Vec::with_capacity(max_list),
-            keys: Vec::with_capacity(max_list),
         }
     }
 
@@ -89,7 +86,6 @@ impl Scratch {
             + self.best.capacity() * std::mem::size_of::<Best>()
             + self.pending.capacity() * 8
             + self.tris.capacity() * std::mem::size_of::<TriFromOrigin>()
-            + self.keys.capacity() * 8
     }
 }
 
@@ -477,18 +473,6 @@ impl Ctx<'_> {
     /// The list's answer for every unanswered ray of the tile, into `s.best`. Rays from one
     /// origin go four at a time through the list's triangles prepared for that origin
     /// ([`TriFromOrigin`]: bit-identical to the shared test); others one at a time.
-    ///
-    /// **Nearest first, with an exact early exit.** The four-ray pass takes the list in the
-    /// order of `key = max_a gap_a`, the origin's largest per-axis gap to the triangle's box
-    /// (`fl(lo_a − o_a)` or `fl(o_a − hi_a)`, 0 inside), and stops once `key > thr_l` for every
-    /// lane, `thr_l = fl(t_l · |d_l|∞ · (1 + 10⁻⁵))` with `t_l` the lane's best (or `tmax`). Why
-    /// no skipped triangle could be reported: a hit the shared test reports lies in the
-    /// triangle's box slab interval (the gate moves it there), whose entry is at least this
-    /// axis's `fl(fl(lo_a − o_a) · inv_a)` (the same float as `key` times `inv_a`; a lane moving
-    /// away from the box on that axis reaches it only at `t < 0 <= tmin`, as one-origin tiles
-    /// have `tmin >= 0`), lowered by `BOX_ENTRY_SLACK`: so `t >= key / |d|∞ · (1 − 10⁻⁶)
-    /// > t_l`. Such a triangle can neither be nearer than the lane's best nor tie with it, and
-    /// later ones have larger keys. Any-hit lanes stop at their first hit.
     fn list_answers<const ANY: bool>(&self, one_origin: bool, s: &mut Scratch) {
         let rays = self.rays;
         s.best.clear();
@@ -501,7 +485,6 @@ impl Ctx<'_> {
             best,
             pending,
             tris,
-            keys,
             ..
         } = s;
         if !one_origin || list.len() < 2 || pending.len() < 4 {
@@ -516,15 +499,8 @@ impl Ctx<'_> {
             .map(|&n| rays.dir(idx[n]).abs().max_element())
             .fold(f32::INFINITY, f32::min);
         let soup = self.soup;
-        keys.clear();
-        keys.extend(list.iter().map(|&p| {
-            let b = soup.bounds(p as usize);
-            let gap = (b.min - o).max(o - b.max).max(Vec3::ZERO).max_element();
-            (gap, p)
-        }));
-        keys.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         tris.clear();
-        tris.extend(keys.iter().map(|&(_, p)| {
+        tris.extend(list.iter().map(|&p| {
             let k = p as usize;
             TriFromOrigin::new(o, soup.v0[k], soup.v1[k], soup.v2[k], dlow)
         }));
@@ -545,19 +521,9 @@ impl Ctx<'_> {
             ];
             let mut b: [Best; 4] = lane.map(|i| (rays.tmax[i], MISS, 0.0, 0.0));
             let mut tmax = Vec4::from_array(b.map(|x| x.0));
-            let dmax = Vec4::from_array(lane.map(|i| rays.dir(i).abs().max_element()));
-            let grow = Vec4::splat(1.0 + 1e-5);
-            let mut thr = (tmax * dmax * grow).max_element();
-            let mut open = 0b1111u32;
-            for (tri, &(key, p)) in tris.iter().zip(keys.iter()) {
-                if key > thr {
-                    break;
-                }
+            for (tri, &p) in tris.iter().zip(list.iter()) {
                 let h = tri.intersect4(d, tmin, tmax);
                 let mut m = h.mask;
-                if m == 0 {
-                    continue;
-                }
                 while m != 0 {
                     let l = m.trailing_zeros() as usize;
                     m &= m - 1;
@@ -565,12 +531,7 @@ impl Ctx<'_> {
                         b[l] = (h.t[l], p, h.u[l], h.v[l]);
                         tmax[l] = h.t[l];
                     }
-                    open &= !(1 << l);
                 }
-                if ANY && open == 0 {
-                    break;
-                }
-                thr = (tmax * dmax * grow).max_element();
             }
             for (k, &n) in group.iter().enumerate() {
                 best[n] = b[k];
