@@ -17,7 +17,8 @@ dragons are open meshes (most bounce rays escape, so deep bounces are small batc
 interior, where every bounce stays near the pixel count, as in the paper's Fig. 10 scenes. Sponza
 gets its preset inside camera (bench/common.py), every other scene raysift's default framing.
 
-Contenders: every tracer `raysift tracers` lists (--tracers to restrict); a brute-force tracer only
+Contenders: every tracer `raysift tracers` lists (--tracers to restrict; `dacrt:top_below=0` is a
+contender of its own, the tracer with `--opt top_below=0`, options joined by `+`); a brute-force tracer only
 where rays x triangles stays within --naive-budget. They alternate (A, B, C, A, B, C, ...) for
 --rounds rounds; tables give medians over rounds, and each tracer's frame ÷ the --baseline tracer's
 (default bvh) as the median of per-round ratios (common.paired_ratio).
@@ -46,16 +47,25 @@ DEFAULT_SCENES = ["bun_zipper.ply", "sponza.obj.gz", "dragon_vrip_res2.ply.gz", 
 BASELINE = "bvh"
 
 
+def tracer_args(contender):
+    """`dacrt:top_below=0+leaf_pairs=9` -> --tracer dacrt --opt top_below=0 --opt leaf_pairs=9."""
+    name, _, opts = contender.partition(":")
+    args = ["--tracer", name]
+    for o in filter(None, opts.split("+")):
+        args += ["--opt", o]
+    return args
+
+
 def animate_cmd(a, ctx, spec, tracer, work):
     return [ctx["raysift"], "animate", spec, "--motion", "explode", "--frames", a.frames, "--no-images",
-            "--width", a.size, "--height", a.size, "--tracer", tracer, "--threads", a.threads, "--pin", "--json",
+            "--width", a.size, "--height", a.size, *tracer_args(tracer), "--threads", a.threads, "--pin", "--json",
             "--out", work / "frames", *common.camera_args(common.camera_preset(spec))]
 
 
 def path_cmd(a, ctx, spec, tracer, work):
     return [ctx["raysift"], "render", spec, "--integrator", "path", "--spp", a.spp, "--bounces", a.bounces,
-            "--width", a.path_size, "--height", a.path_size, "--tracer", tracer, "--threads", a.threads, "--pin",
-            "--json", "--out", work / f"{common.slug(spec)}-{tracer}.png",
+            "--width", a.path_size, "--height", a.path_size, *tracer_args(tracer), "--threads", a.threads, "--pin",
+            "--json", "--out", work / f"{common.slug(spec)}-{common.slug(tracer)}.png",
             *common.camera_args(common.camera_preset(spec))]
 
 
@@ -94,7 +104,7 @@ def run_part(a, ctx, spec, part, make_cmd, results, sres):
     pres = sres[part] = dict(tracers={}, commands={})
     alive = []
     for t in ctx["tracers"]:
-        if tris is not None and common.over_budget(t, cost, tris, a.naive_budget):
+        if tris is not None and common.over_budget(t.partition(":")[0], cost, tris, a.naive_budget):
             log(f"  {t} skipped ({part}): {cost} rays x {tris} triangles > budget {a.naive_budget:.2g}")
             pres["tracers"][t] = dict(skipped=f"rays x triangles > {a.naive_budget:.2g}")
             continue
@@ -135,8 +145,10 @@ def bench_scene(a, ctx, spec, results):
     except (ProcError, ValueError) as e:
         log(f"  (raysift info failed: {e})")
     t0 = time.perf_counter()
-    run_part(a, ctx, spec, "animate", animate_cmd, results, sres)
-    run_part(a, ctx, spec, "path", path_cmd, results, sres)
+    if "animate" in a.parts:
+        run_part(a, ctx, spec, "animate", animate_cmd, results, sres)
+    if "path" in a.parts:
+        run_part(a, ctx, spec, "path", path_cmd, results, sres)
     sres["elapsed_s"] = time.perf_counter() - t0
 
 
@@ -211,6 +223,7 @@ def main(argv=None):
     ap.add_argument("--report", metavar="RESULTS.json", help="only re-make the tables from a results file")
     common.add_scene_args(ap, ",".join(DEFAULT_SCENES))
     ap.add_argument("--tracers", help="raysift tracers to run (default: all that `raysift tracers` lists)")
+    ap.add_argument("--parts", default="animate,path", help="which parts to run (default %(default)s)")
     ap.add_argument("--baseline", default=BASELINE, help="the tracer the ratios divide by (default %(default)s)")
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--size", type=int, default=1024, help="animation image width and height")
@@ -241,7 +254,12 @@ def main(argv=None):
     if not a.no_build:
         common.build(peer=False)
     raysift = common.tool_path(a.raysift, common.RAYSIFT_BIN)
-    tracers = common.choose_tracers(common.list_tracers(raysift), a.tracers)
+    a.parts = common.split_list(a.parts)
+    if not a.parts or set(a.parts) - {"animate", "path"}:
+        sys.exit(f"--parts takes animate and/or path, not {a.parts}")
+    wanted = None if a.tracers is None else ",".join(t.partition(":")[0] for t in common.split_list(a.tracers))
+    names = common.choose_tracers(common.list_tracers(raysift), wanted)  # exits on an unknown name
+    tracers = names if a.tracers is None else common.split_list(a.tracers)
     if not tracers:
         sys.exit("no tracer to run")
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="raysift-dynamic-"))

@@ -106,14 +106,15 @@ fn dacrt_options_are_checked_and_stale_scenes_refused() {
 
 /// Few incoherent rays against many triangles: the paper's rule ends the recursion at once
 /// (fewer than `r_limit` rays) in a naive leaf of every triangle; `leaf_pairs` divides on and
-/// tests a small fraction of the pairs, with the same hits.
+/// tests a small fraction of the pairs, with the same hits. (The paper has no top tree either.)
 #[test]
 fn dacrt_sparse_rays_divide_on() {
     let s = procedural::icosphere(20_000);
     let rays = random_in_box(&s.bounds(), 15, 5);
     for mode in ["ray", "random"] {
         let max = usize::MAX.to_string();
-        let paper = run(&s, &rays, &[("mode", mode), ("leaf_pairs", &max)]).work;
+        let paper = [("mode", mode), ("leaf_pairs", &max), ("top_below", "0")];
+        let paper = run(&s, &rays, &paper).work;
         let ours = run(&s, &rays, &[("mode", mode)]).work;
         assert_eq!(paper.get("ray_tri"), 15 * s.len() as u64, "{paper:?}");
         assert!(

@@ -251,7 +251,10 @@ fn four_ray_packets_equal_single_rays_and_share_nodes() {
         assert_eq!(wo, go);
         let (n1, n4) = (s1.work.get("nodes"), s4.work.get("nodes"));
         if shared {
-            assert!(n4 * 10 < n1 * 6, "packets visit {n4} nodes, single rays {n1}");
+            assert!(
+                n4 * 10 < n1 * 6,
+                "packets visit {n4} nodes, single rays {n1}"
+            );
         }
     }
     assert!(tracers::create("kdtree", &opts("2")).is_err());

@@ -90,6 +90,20 @@ pub struct Config {
     /// tile's first trace was often slower, and fresh processes with either setting saw rare
     /// long stalls on this (virtual) machine (BENCHMARKS.md, § Fig. 14). Default true.
     pub huge_pages: bool,
+    /// Ours (`top.rs`): ray batches without packets of at most this many rays per triangle
+    /// walk a top tree kept between calls (built by the first such call after a prepare that
+    /// changed the scene: the recursion's upper levels, ray-independent, with their
+    /// triangle lists at its leaves) instead of streaming every triangle through the upper
+    /// levels of each call. 0 turns it off. Default 2 (BENCHMARKS.md, § DACRT: sparse
+    /// batches).
+    pub top_below: f64,
+    /// The top tree's leaves: at most this many triangles (smaller ones only where the list
+    /// budget or the progress guard stops the split). Default 32.
+    pub top_leaf: usize,
+    /// The top tree's leaf lists hold at most `(1 + top_growth)` times the live triangles
+    /// (straddling triangles are in both children); the budget is shared between children in
+    /// proportion to their triangles. Default 1.
+    pub top_growth: f64,
 }
 
 impl Default for Config {
@@ -112,6 +126,9 @@ impl Default for Config {
             pixel_leaf: true,
             pixel_leaf_c_limit: 256,
             huge_pages: true,
+            top_below: 2.0,
+            top_leaf: 32,
+            top_growth: 1.0,
         }
     }
 }
@@ -135,6 +152,9 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "pixel_leaf", doc: "camera batches: tile leaves testing each triangle against the pixels of its rectangle (ours)" },
     OptionDoc { key: "pixel_leaf_c_limit", doc: "tile leaf when fewer active tiles than this" },
     OptionDoc { key: "huge_pages", doc: "ask Linux for transparent huge pages for the per-call buffers" },
+    OptionDoc { key: "top_below", doc: "batches without packets of at most this many rays per triangle walk a top tree kept between calls (ours; 0: off)" },
+    OptionDoc { key: "top_leaf", doc: "the top tree's leaves hold at most this many triangles" },
+    OptionDoc { key: "top_growth", doc: "the top tree's lists hold at most (1 + this) times the triangles" },
 ];
 
 /// The paper's small limits and ours pushed to their extremes (deep recursions everywhere),
@@ -253,6 +273,40 @@ pub const PRESETS: &[Preset] = &[
             ("c_limit", "4"),
             ("pixel_leaf_c_limit", "4"),
             ("p_limit", "4"),
+        ],
+    },
+    Preset {
+        name: "top tree everywhere, leaves of two, tiny limits",
+        opts: &[
+            ("mode", "random"),
+            ("tasks", "3"),
+            ("r_limit", "2"),
+            ("p_limit", "2"),
+            ("leaf_pairs", "0"),
+            ("split_sample_threshold", "64"),
+            ("split_sample_stride", "3"),
+            ("top_below", "1e300"),
+            ("top_leaf", "2"),
+        ],
+    },
+    Preset {
+        name: "top tree, ray mode, no spare budget",
+        opts: &[
+            ("mode", "ray"),
+            ("tasks", "2"),
+            ("top_below", "1e300"),
+            ("top_leaf", "1"),
+            ("top_growth", "0"),
+        ],
+    },
+    Preset {
+        name: "top tree, auto, large leaves",
+        opts: &[
+            ("mode", "auto"),
+            ("tasks", "1"),
+            ("top_below", "1e300"),
+            ("top_leaf", "200"),
+            ("top_growth", "3"),
         ],
     },
     Preset {

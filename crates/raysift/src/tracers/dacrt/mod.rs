@@ -18,6 +18,7 @@
 //! | `run.rs` | one call: the plan, the tasks (threads), each task's set-up, results | §3.3, ours |
 //! | `screen.rs` | screen-space and pixel culling: the pixel check, the projection | ours |
 //! | `tile_leaf.rs` | tile leaves | ours |
+//! | `top.rs` | the top tree: the upper levels kept between calls for sparse batches | ours |
 //! | `scratch.rs` | the buffers kept between calls, on huge pages | ours |
 //! | `tests.rs` | unit tests of the pieces (the tracer's own: `tests/dacrt.rs`) | |
 //!
@@ -103,6 +104,11 @@
 //!   to the scalar one); larger leaves (few rays, many triangles) keep the scalar loop
 //!   (gathering in chunks for them measured slower; both in BENCHMARKS.md, § DACRT design
 //!   measurements).
+//! - **The top tree** (ours, `Config::top_below`, `top.rs`): the ray-independent upper levels
+//!   of the recursion (its splits and prefix partitions depend only on the triangles), built
+//!   once per scene state into a tree with triangle lists at its leaves; sparse batches walk
+//!   their rays down it and start Algorithm 1 at its leaves, so a few hundred bounce rays no
+//!   longer stream every triangle a dozen times (BENCHMARKS.md, § DACRT: sparse batches).
 //! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
 //!   the rays (bands of tile rows for camera rays) and their own index lists.
 //! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
@@ -141,7 +147,11 @@
 //! ([`Tracer::bytes`]: `24·T` plus the kept buffers); `Stats::peak_bytes` reports the largest
 //! task's share. The integration test `tests/dacrt_memory.rs` checks the formula exactly with a
 //! counting allocator, and that a second call allocates nothing. Screen-space and pixel
-//! culling allocate nothing.
+//! culling allocate nothing. Batches without packets of at most `top_below` rays per triangle
+//! (the default modes' bounce, random and shadow rays up to `2·T` rays) add the top tree,
+//! built by the first such call after the scene changed and then held: `12·T` at the defaults
+//! (`4·(1 + top_growth)·T + 16·(4·⌈(1 + top_growth)·T / top_leaf⌉ + 1)`), and `4·T` more
+//! while it is built (see `top.rs`).
 
 mod cone_rec;
 mod config;
@@ -156,6 +166,7 @@ mod split;
 #[cfg(test)]
 mod tests;
 mod tile_leaf;
+mod top;
 
 pub use config::{Config, Mode, OPTION_DOCS, PRESETS};
 
@@ -172,7 +183,8 @@ use order::View;
 use packets::{PackedCone, Packets};
 use ray_rec::RayRec;
 use scratch::{Scratch, MAX_POOLED};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
+use top::TopTree;
 
 /// The DACRT tracer: the scene plus its per-axis triangle bounds (rebuilt by every prepare, O(T)).
 pub struct Dacrt {
@@ -190,6 +202,9 @@ pub struct Dacrt {
     /// page faults after it: measured in BENCHMARKS.md, § DACRT design measurements).
     /// [`MAX_POOLED`] empty slots are made with the tracer; tasks beyond use fresh buffers.
     pool: Vec<Mutex<Scratch>>,
+    /// The top tree of the prepared scene (`top.rs`), built by the first call that wants it
+    /// and dropped by a prepare that changes a triangle.
+    top: OnceLock<TopTree>,
 }
 
 impl Dacrt {
@@ -200,6 +215,7 @@ impl Dacrt {
             stamp: Stamp::default(),
             span: Default::default(),
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
+            top: OnceLock::new(),
         }
     }
 
@@ -299,6 +315,8 @@ crate::counters! {
         nodes,
         /// Naive leaves (and tile leaves).
         leaves,
+        /// 1 when this call built the top tree (its triangle/box tests are in `tri_box`).
+        top_built,
     }
 }
 
@@ -374,6 +392,9 @@ impl Tracer for Dacrt {
                 n
             }
         };
+        if written > 0 {
+            self.top = OnceLock::new();
+        }
         self.stamp = scene.stamp();
         Ok(Stats::prepared(
             &Built {
@@ -399,7 +420,8 @@ impl Tracer for Dacrt {
             return Ok(Stats::traced(rays.len(), &Counts::default()));
         }
         let (plan, packets) = self.plan(rays);
-        let tally: Tally<Counts> =
+        let (top, built) = self.top_tree(scene, rays, &plan);
+        let mut tally: Tally<Counts> =
             par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, cost| {
                 self.run_task::<false>(
                     scene,
@@ -407,6 +429,7 @@ impl Tracer for Dacrt {
                     range,
                     &plan,
                     packets,
+                    top,
                     out.t,
                     out.prim,
                     out.u,
@@ -415,6 +438,10 @@ impl Tracer for Dacrt {
                     cost,
                 )
             });
+        if let Some(tests) = built {
+            tally.counts.top_built += 1;
+            tally.counts.tri_box += tests;
+        }
         Ok(tally.into_stats(rays.len()))
     }
 
@@ -435,7 +462,8 @@ impl Tracer for Dacrt {
             return Ok(Stats::traced(rays.len(), &Counts::default()));
         }
         let (plan, packets) = self.plan(rays);
-        let tally: Tally<Counts> =
+        let (top, built) = self.top_tree(scene, rays, &plan);
+        let mut tally: Tally<Counts> =
             par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, cost| {
                 self.run_task::<true>(
                     scene,
@@ -443,6 +471,7 @@ impl Tracer for Dacrt {
                     range,
                     &plan,
                     packets,
+                    top,
                     &mut [],
                     &mut [],
                     &mut [],
@@ -451,6 +480,10 @@ impl Tracer for Dacrt {
                     cost,
                 )
             });
+        if let Some(tests) = built {
+            tally.counts.top_built += 1;
+            tally.counts.tri_box += tests;
+        }
         Ok(tally.into_stats(rays.len()))
     }
 
@@ -460,6 +493,8 @@ impl Tracer for Dacrt {
             .iter()
             .map(|m| m.lock().map_or(0, |g| g.bytes()))
             .sum();
-        self.span.iter().map(|v| v.capacity() * 8).sum::<usize>() + pool
+        self.span.iter().map(|v| v.capacity() * 8).sum::<usize>()
+            + pool
+            + self.top.get().map_or(0, TopTree::bytes)
     }
 }

@@ -59,32 +59,40 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         split: f32,
         low: bool,
     ) -> (usize, usize) {
-        let span = self.span[axis];
-        let mut k = 0;
-        let mut other = 0;
-        {
-            // The plane test, as a branch-free Lomuto partition (see `partition_rays`: the
-            // unconditional swap keeps `[0, k)` kept, `[k, p)` dropped).
-            let idx = &mut self.tri_idx[..nt];
-            for p in 0..nt {
-                if let Some(&f) = idx.get(p + SPLIT_PREFETCH) {
-                    prefetch(span, f as usize);
-                }
-                let t = idx[p] as usize;
-                let [l, h] = span[t];
-                let (inside, opposite) = if low {
-                    (l <= split, h >= split)
-                } else {
-                    (h >= split, l <= split)
-                };
-                other += opposite as usize;
-                idx.swap(k, p);
-                k += inside as usize;
-            }
-            self.st.tri_box += nt as u64;
-        }
+        let (k, other) = partition_tris(self.span[axis], &mut self.tri_idx[..nt], split, low);
+        self.st.tri_box += nt as u64;
         (k, other)
     }
+}
+
+/// The split-plane filter of `idx` for the child on side `low` of `split` (`span`: the axis'
+/// min/max list), as a branch-free Lomuto partition (see `Task::partition_rays`: the
+/// unconditional swap keeps `[0, k)` kept, `[k, p)` dropped). Returns the kept count and how
+/// many of the triangles the plane test sends to the other child.
+pub(super) fn partition_tris(
+    span: &[[f32; 2]],
+    idx: &mut [u32],
+    split: f32,
+    low: bool,
+) -> (usize, usize) {
+    let mut k = 0;
+    let mut other = 0;
+    for p in 0..idx.len() {
+        if let Some(&f) = idx.get(p + SPLIT_PREFETCH) {
+            prefetch(span, f as usize);
+        }
+        let t = idx[p] as usize;
+        let [l, h] = span[t];
+        let (inside, opposite) = if low {
+            (l <= split, h >= split)
+        } else {
+            (h >= split, l <= split)
+        };
+        other += opposite as usize;
+        idx.swap(k, p);
+        k += inside as usize;
+    }
+    (k, other)
 }
 
 /// How many triangles ahead the list loops prefetch their scattered data.

@@ -80,15 +80,34 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return self.leaf(&cell, nt, rend, ord);
         };
         let low_first = self.low_first(axis, split, rend);
-        // First child: both lists filtered; what it rejects stays behind its prefixes.
+        // Each child's rays are filtered before its triangles: a child no ray enters costs no
+        // triangle stream (sparse batches, whose rays leave most cells empty, spend most of
+        // their time streaming triangles; BENCHMARKS.md, § DACRT: sparse batches).
         let child = half(&cell, axis, split, low_first);
+        let rend0 = self.partition_rays(&child, rend);
+        if rend0 == self.rterm {
+            // No ray in the first child: the second holds every ray of the cell the first
+            // rejected (all of them, when the list was filtered against the cell).
+            let child = half(&cell, axis, split, !low_first);
+            let (nt1, other) = self.partition_tris(nt, axis, split, !low_first);
+            if no_progress(nt, nt1, other) {
+                return self.leaf(&cell, nt, rend, ord);
+            }
+            let rend1 = if filtered {
+                rend
+            } else {
+                self.partition_rays(&child, rend)
+            };
+            let ord1 = ord.child(axis, split, false, !low_first);
+            return self.ray_rec(child, nt1, rend1, depth + 1, ord1, true);
+        }
+        // First child: both lists filtered; what it rejects stays behind its prefixes.
         let (nt0, other) = self.partition_tris(nt, axis, split, low_first);
         if no_progress(nt, nt0, other) {
             // Little progress: (nearly) every triangle straddles the plane (§3.6 guard, ours
             // widened from "every" to nine in ten).
             return self.leaf(&cell, nt, rend, ord);
         }
-        let rend0 = self.partition_rays(&child, rend);
         let ord0 = ord.child(axis, split, true, low_first);
         self.ray_rec(child, nt0, rend0, depth + 1, ord0, true);
         // Second child. A triangle or ray of this cell that the first child's (conservative)
@@ -98,8 +117,6 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         // `[nt0, nt)` and `[rend0, rend)`. Only the first child's survivors are tested. Rays
         // count as known only when this cell's list was filtered against it.
         let child = half(&cell, axis, split, !low_first);
-        let (k, _) = self.partition_tris(nt0, axis, split, !low_first);
-        let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
         let rend1 = if filtered {
             let k = self.partition_rays(&child, rend0);
             gather_block(&mut self.ray_idx, k, rend0, rend);
@@ -107,6 +124,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         } else {
             self.partition_rays(&child, rend)
         };
+        if rend1 == self.rterm {
+            return;
+        }
+        let (k, _) = self.partition_tris(nt0, axis, split, !low_first);
+        let nt1 = gather_block(&mut self.tri_idx, k, nt0, nt);
         let ord1 = ord.child(axis, split, false, !low_first);
         self.ray_rec(child, nt1, rend1, depth + 1, ord1, true);
     }

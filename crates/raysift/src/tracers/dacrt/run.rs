@@ -8,6 +8,7 @@ use super::ray_rec::RayRec;
 use super::scratch::{reuse, Scratch};
 use super::screen::{pinhole_deviation, MAX_PIXEL_DEVIATION, PINHOLE_TOL};
 use super::tile_leaf::tile_ordered_rays;
+use super::top::TopTree;
 use super::{Counts, Dacrt, Mode, Task};
 use crate::geom::{ConeQuery, PixelProjection};
 use crate::mem::reserve_exact_huge;
@@ -93,6 +94,7 @@ impl Dacrt {
         range: Range<usize>,
         plan: &Plan,
         packets: Packets,
+        top: Option<&TopTree>,
         t: &mut [f32],
         prim: &mut [u32],
         u: &mut [f32],
@@ -302,20 +304,25 @@ impl Dacrt {
             }
             rend = len;
         }
-        // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root.
+        // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root, or
+        // (batches without packets) down the top tree to Algorithm 1 from its leaves.
         let rend = task.partition_rays(&root, rend);
-        let nlive = match cull {
-            Some((proj, tol, ys, cull)) => task.project_triangles(&proj, tol, ys, cull),
-            None => task.live_triangles(),
-        };
-        task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
-        if !task.cone_idx.is_empty() {
-            // Cones: Algorithm 2 from the root; the ray list is free again, and the recursion
-            // only permuted the triangle list's prefix `[0, nlive)`.
-            task.rterm = 0;
-            let cend = task.cone_idx.len();
-            let cend = task.partition_cones(&root, cend);
-            task.cone_rec(root, nlive, cend, 0, Order::NONE);
+        if let Some(top) = top.filter(|t| ncones == 0 && t.root == root) {
+            task.top_rec(top, 0, root, rend, 0, Order::NONE, true);
+        } else {
+            let nlive = match cull {
+                Some((proj, tol, ys, cull)) => task.project_triangles(&proj, tol, ys, cull),
+                None => task.live_triangles(),
+            };
+            task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
+            if !task.cone_idx.is_empty() {
+                // Cones: Algorithm 2 from the root; the ray list is free again, and the
+                // recursion only permuted the triangle list's prefix `[0, nlive)`.
+                task.rterm = 0;
+                let cend = task.cone_idx.len();
+                let cend = task.partition_cones(&root, cend);
+                task.cone_rec(root, nlive, cend, 0, Order::NONE);
+            }
         }
         if !ANY && task.tile_leaves {
             let Packets::Tiles { width, rows, .. } = packets else {
@@ -354,5 +361,31 @@ impl Dacrt {
             counts: task.st,
             peak_bytes: task.peak,
         }
+    }
+}
+
+impl Dacrt {
+    /// The top tree for this call (built now if it is wanted and not there yet), and the
+    /// triangle/box tests of its build when this call built it.
+    pub(super) fn top_tree(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        plan: &Plan,
+    ) -> (Option<&TopTree>, Option<u64>) {
+        let wanted = !plan.packets
+            && self.cfg.top_below > 0.0
+            && rays.len() as f64 <= self.cfg.top_below * scene.len() as f64;
+        if !wanted {
+            return (None, None);
+        }
+        let mut built = None;
+        let top = self.top.get_or_init(|| {
+            let span = [&self.span[0][..], &self.span[1][..], &self.span[2][..]];
+            let t = TopTree::build(&self.cfg, span, scene.bounds());
+            built = Some(t.tests);
+            t
+        });
+        (Some(top), built)
     }
 }

@@ -1,37 +1,46 @@
 //! The split plane (§3.6, Fig. 5): the cell's longest axis at the mean of sampled triangle
 //! midpoints, or at the spatial median.
 
-use super::Task;
+use super::{Config, Task};
 use crate::geom::Aabb;
 
 impl<'a, const ANY: bool> Task<'a, ANY> {
     /// §3.6: the split axis and position, or `None` when the cell cannot be split.
     pub(super) fn choose_split(&self, cell: &Aabb, nt: usize) -> Option<(usize, f32)> {
-        let axis = cell.longest_axis();
-        let (mn, mx) = (cell.min[axis], cell.max[axis]);
-        let median = mn + (mx - mn) * 0.5;
-        let mut s = median;
-        let stride = self.cfg.split_sample_stride.max(1);
-        if nt >= self.cfg.split_sample_threshold {
-            let span = self.span[axis];
-            let (mut sum, mut n) = (0.0f64, 0u32);
-            for p in (0..nt).step_by(stride) {
-                let t = self.tri_idx[p] as usize;
-                let [l, h] = span[t];
-                if l <= h {
-                    sum += 0.5 * (l.clamp(mn, mx) as f64 + h.clamp(mn, mx) as f64);
-                    n += 1;
-                }
-            }
-            if n > 0 {
-                s = (sum / n as f64) as f32;
-            }
-        }
-        if !(s > mn && s < mx) {
-            s = median;
-        }
-        (s > mn && s < mx).then_some((axis, s))
+        choose_split(self.cfg, self.span, &self.tri_idx[..nt], cell)
     }
+}
+
+/// §3.6 for the triangles `ids` in `cell` (the task's recursion and the top tree's build).
+pub(super) fn choose_split(
+    cfg: &Config,
+    span: [&[[f32; 2]]; 3],
+    ids: &[u32],
+    cell: &Aabb,
+) -> Option<(usize, f32)> {
+    let axis = cell.longest_axis();
+    let (mn, mx) = (cell.min[axis], cell.max[axis]);
+    let median = mn + (mx - mn) * 0.5;
+    let mut s = median;
+    let stride = cfg.split_sample_stride.max(1);
+    if ids.len() >= cfg.split_sample_threshold {
+        let span = span[axis];
+        let (mut sum, mut n) = (0.0f64, 0u32);
+        for &t in ids.iter().step_by(stride) {
+            let [l, h] = span[t as usize];
+            if l <= h {
+                sum += 0.5 * (l.clamp(mn, mx) as f64 + h.clamp(mn, mx) as f64);
+                n += 1;
+            }
+        }
+        if n > 0 {
+            s = (sum / n as f64) as f32;
+        }
+    }
+    if !(s > mn && s < mx) {
+        s = median;
+    }
+    (s > mn && s < mx).then_some((axis, s))
 }
 
 /// The low or high half of `cell` at `split` on `axis` (both closed, sharing the plane).
