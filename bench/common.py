@@ -345,11 +345,12 @@ def list_tracers(raysift) -> list[str]:
 
 def choose_tracers(available, wanted):
     """--tracers: None = every registered tracer; "a,b" = those (exits on an unknown name); "" = none
-    (Embree alone, in run.py)."""
+    (Embree alone, in run.py). A contender may carry options: `dacrt:top_below=0+leaf_pairs=9` is
+    dacrt with those `--opt`s (see tracer_args)."""
     if wanted is None:
         return list(available)
     tracers = split_list(wanted)
-    unknown = [t for t in tracers if t not in available]
+    unknown = [t for t in tracers if tracer_base(t) not in available]
     if unknown:
         sys.exit(f"unknown tracer(s) {unknown}; `raysift tracers` lists {available}")
     return tracers
@@ -361,8 +362,23 @@ BRUTE_FORCE = {"naive"}
 NAIVE_BUDGET = 1e8
 
 
+def tracer_base(contender):
+    """The registered tracer of a contender: `dacrt:top_below=0` -> `dacrt`."""
+    return contender.partition(":")[0]
+
+
+def tracer_args(contender):
+    """raysift's arguments for a contender: `dacrt:top_below=0+leaf_pairs=9` -> --tracer dacrt
+    --opt top_below=0 --opt leaf_pairs=9."""
+    name, _, opts = contender.partition(":")
+    args = ["--tracer", name]
+    for o in filter(None, opts.split("+")):
+        args += ["--opt", o]
+    return args
+
+
 def over_budget(tracer, rays, triangles, budget=NAIVE_BUDGET):
-    return tracer in BRUTE_FORCE and float(rays) * triangles > budget
+    return tracer_base(tracer) in BRUTE_FORCE and float(rays) * triangles > budget
 
 
 # ------------------------------------------------------------------------------------------------

@@ -164,7 +164,7 @@ def command(ctx, sc, w, c, out):
             if w.get("map"):
                 cmd += ["--map", w["map"]]
     else:
-        cmd = [ctx["raysift"], "trace", sc["spec"], "--rays", w["rays"], "--tracer", c["tracer"],
+        cmd = [ctx["raysift"], "trace", sc["spec"], "--rays", w["rays"], *common.tracer_args(c["tracer"]),
                "--threads", c["threads"], "--pin", "--json"]
     if w["occlusion"]:
         cmd.append("--occlusion")
@@ -357,7 +357,7 @@ def bench_scene(ctx, spec, results):
                     # Runs of a second or more hardly feel process warm-up: one run per process
                     # there (saves time on big scenes); naive has no structure to build.
                     long_run = r["prepare_ms"] + r["trace_ms"] > ctx["long_run_ms"]
-                    c["inproc"] = 1 if long_run or c.get("tracer") in common.BRUTE_FORCE else ctx["inproc"]
+                    c["inproc"] = 1 if long_run or common.tracer_base(c.get("tracer", "")) in common.BRUTE_FORCE else ctx["inproc"]
                     cres["inproc"] = c["inproc"]
                     if (r["prepare_ms"] + r["trace_ms"]) / 1e3 > ctx["slow_s"] and ctx["rounds"] > SLOW_ROUNDS:
                         c["max_rounds"] = SLOW_ROUNDS

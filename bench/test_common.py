@@ -115,6 +115,19 @@ class ScenesAndNames(unittest.TestCase):
         self.assertEqual(common.order_names(["bvh-2t", "bvh-1t", "embree-low-1t"]),
                          ["embree-low-1t", "bvh-1t", "bvh-2t"])
 
+    def test_tracer_variants(self):
+        self.assertEqual(common.tracer_args("bvh"), ["--tracer", "bvh"])
+        self.assertEqual(common.tracer_args("dacrt:top_below=0+leaf_pairs=9"),
+                         ["--tracer", "dacrt", "--opt", "top_below=0", "--opt", "leaf_pairs=9"])
+        self.assertEqual(common.tracer_base("dacrt:top_below=0"), "dacrt")
+        self.assertEqual(common.choose_tracers(["bvh", "dacrt"], "dacrt:top_below=0,bvh"),
+                         ["dacrt:top_below=0", "bvh"])
+        with self.assertRaises(SystemExit):
+            common.choose_tracers(["bvh"], "dacrt:top_below=0")
+        self.assertTrue(common.over_budget("naive:x=1", 1e9, 1e9))
+        self.assertEqual(common.split_name(common.contender_name("dacrt:top_below=0", 2)),
+                         ("dacrt:top_below=0", 2))
+
     def test_camera(self):
         self.assertEqual(common.camera_args(common.camera_preset("/x/sponza.obj.gz")),
                          ["--eye=-13,2.5,0", "--look=10,4.5,0", "--up=0,1,0", "--fov", "60"])

@@ -213,3 +213,37 @@ fn dacrt_per_ray_cost_adds_up() {
         }
     }
 }
+
+/// `phase_times`: off, every `ns_*` counter is 0; on, the phases of camera packets (tile
+/// leaves), of a sparse batch down the top tree (its build charged to the call that built it)
+/// and of shadow rays all get time, and the answers are unchanged (`run` checks them).
+#[test]
+fn dacrt_phase_times() {
+    let s = procedural::icosphere(20_000);
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(64, 64);
+    let sparse = random_in_box(&s.bounds(), 300, 9);
+    let phases = ["ns_setup", "ns_lists", "ns_divide", "ns_leaves"];
+    for rays in [&cam, &sparse] {
+        let off = run(&s, rays, &[]).work;
+        assert!(phases.iter().all(|p| off.get(p) == 0), "{off:?}");
+        let on = run(&s, rays, &[("phase_times", "true")]).work;
+        assert!(phases.iter().all(|p| on.get(p) > 0), "{on:?}");
+        // The time counters leave the work counters alone.
+        for w in [
+            "ray_box",
+            "ray_tri",
+            "tri_box",
+            "nodes",
+            "leaves",
+            "top_built",
+        ] {
+            assert_eq!(on.get(w), off.get(w), "{w}: {on:?} vs {off:?}");
+        }
+    }
+    let mut d = tracers::create("dacrt", &opts(&[("phase_times", "true")])).unwrap();
+    d.prepare(&s).unwrap();
+    let (hits, _) = d.intersect_timed(&s, &cam).unwrap();
+    let (shadow, _) = shadow_rays(&s, &cam, &hits, Vec3::new(2.0, 3.0, 2.0));
+    let (_, st) = d.occluded_timed(&s, &shadow).unwrap();
+    assert!(phases.iter().all(|p| st.work.get(p) > 0), "{st:?}");
+}

@@ -5,7 +5,7 @@ use super::order::{Order, View};
 use super::packets::{tile_mask, PackedCone, Packets};
 use super::partition::gather_block;
 use super::split::half;
-use super::Task;
+use super::{clock, ns_since, Task};
 use crate::geom::{Aabb, Cone, ConeQuery};
 use glam::Vec3;
 
@@ -116,8 +116,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// The end of a cone recursion: a tile leaf or FlushCones.
     fn cone_leaf(&mut self, cell: Aabb, nt: usize, cend: usize, depth: u32, ord: Order) {
         if self.tile_leaves {
+            let c = clock(self.cfg.phase_times);
             let px = self.pixels(&cell);
-            return self.tile_leaf(&cell, nt, cend, px, ord);
+            self.tile_leaf(&cell, nt, cend, px, ord);
+            self.st.ns_leaves += ns_since(c);
+            return;
         }
         self.flush(cell, nt, cend, depth, ord)
     }

@@ -104,6 +104,10 @@ pub struct Config {
     /// (straddling triangles are in both children); the budget is shared between children in
     /// proportion to their triangles. Default 1.
     pub top_growth: f64,
+    /// Ours: time the phases of each call into the `ns_*` counters (set-up, the triangle-list
+    /// or projection pass and the top tree's build, the dividing steps, the leaves). Off by
+    /// default: a clock read per leaf costs a few percent of a camera call.
+    pub phase_times: bool,
 }
 
 impl Default for Config {
@@ -129,6 +133,7 @@ impl Default for Config {
             top_below: 2.0,
             top_leaf: 32,
             top_growth: 1.0,
+            phase_times: false,
         }
     }
 }
@@ -155,6 +160,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "top_below", doc: "batches without packets of at most this many rays per triangle walk a top tree kept between calls (ours; 0: off)" },
     OptionDoc { key: "top_leaf", doc: "the top tree's leaves hold at most this many triangles" },
     OptionDoc { key: "top_growth", doc: "the top tree's lists hold at most (1 + this) times the triangles" },
+    OptionDoc { key: "phase_times", doc: "time each call's phases into the ns_* counters (ours)" },
 ];
 
 /// The paper's small limits and ours pushed to their extremes (deep recursions everywhere),
@@ -184,7 +190,7 @@ macro_rules! tiny {
 pub const PRESETS: &[Preset] = &[
     Preset {
         name: "packet",
-        opts: &[("mode", "packet"), ("tasks", "1")],
+        opts: &[("mode", "packet"), ("tasks", "1"), ("phase_times", "true")],
     },
     Preset {
         name: "ray",
@@ -224,6 +230,7 @@ pub const PRESETS: &[Preset] = &[
             ("flush_filter", "false"),
             ("pixel_cull", "false"),
             ("pixel_leaf", "false"),
+            ("phase_times", "true"),
         ],
     },
     Preset {
@@ -307,6 +314,7 @@ pub const PRESETS: &[Preset] = &[
             ("top_below", "1e300"),
             ("top_leaf", "200"),
             ("top_growth", "3"),
+            ("phase_times", "true"),
         ],
     },
     Preset {

@@ -317,6 +317,17 @@ crate::counters! {
         leaves,
         /// 1 when this call built the top tree (its triangle/box tests are in `tri_box`).
         top_built,
+        /// With `phase_times`: nanoseconds (summed over tasks) of set-up and write-back (ray
+        /// records, cones, pixel checks, z-buffer, results).
+        ns_setup,
+        /// With `phase_times`: nanoseconds of the triangle-list pass (live triangles, or the
+        /// projection with pixel culling) and of the top tree's build.
+        ns_lists,
+        /// With `phase_times`: nanoseconds of the dividing steps (ray, cone and triangle
+        /// filtering, splits, the top tree's walk), leaves excluded.
+        ns_divide,
+        /// With `phase_times`: nanoseconds inside naive and tile leaves.
+        ns_leaves,
     }
 }
 
@@ -327,6 +338,27 @@ crate::counters! {
         /// those of the moved or deformed meshes after a change, none when nothing changed).
         triangles,
     }
+}
+
+/// A call that built the top tree pays for it: `built` is its (triangle/box tests, ns).
+fn charge_top(c: &mut Counts, built: Option<(u64, u64)>) {
+    if let Some((tests, ns)) = built {
+        c.top_built += 1;
+        c.tri_box += tests;
+        c.ns_lists += ns;
+    }
+}
+
+/// A clock for `phase_times`: `None` when off (then [`ns_since`] is 0 and nothing is read).
+#[inline(always)]
+fn clock(on: bool) -> Option<std::time::Instant> {
+    on.then(std::time::Instant::now)
+}
+
+/// Nanoseconds since a [`clock`] reading (0 without one).
+#[inline(always)]
+fn ns_since(c: Option<std::time::Instant>) -> u64 {
+    c.map_or(0, |c| c.elapsed().as_nanos() as u64)
 }
 
 /// Counter docs, for the registry: (built, work).
@@ -438,10 +470,7 @@ impl Tracer for Dacrt {
                     cost,
                 )
             });
-        if let Some(tests) = built {
-            tally.counts.top_built += 1;
-            tally.counts.tri_box += tests;
-        }
+        charge_top(&mut tally.counts, built);
         Ok(tally.into_stats(rays.len()))
     }
 
@@ -480,10 +509,7 @@ impl Tracer for Dacrt {
                     cost,
                 )
             });
-        if let Some(tests) = built {
-            tally.counts.top_built += 1;
-            tally.counts.tri_box += tests;
-        }
+        charge_top(&mut tally.counts, built);
         Ok(tally.into_stats(rays.len()))
     }
 

@@ -5,7 +5,7 @@
 use super::order::Order;
 use super::partition::gather_block;
 use super::split::{half, no_progress};
-use super::Task;
+use super::{clock, ns_since, Task};
 use crate::geom::{intersect_triangle, intersect_triangle4, Aabb, PackedRay, Tri4};
 use crate::rays::MISS;
 use crate::tracer::closer;
@@ -135,9 +135,17 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 
     /// The naive leaf (§3.2): every active ray against every triangle, then early termination.
     fn leaf(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
+        let c = clock(self.cfg.phase_times);
         if nt <= LEAF4_MAX {
-            return self.leaf4(cell, nt, rend, ord);
+            self.leaf4(cell, nt, rend, ord);
+        } else {
+            self.leaf_scalar(cell, nt, rend, ord);
         }
+        self.st.ns_leaves += ns_since(c);
+    }
+
+    /// [`Self::leaf`] for more than [`LEAF4_MAX`] triangles: the scalar loop.
+    fn leaf_scalar(&mut self, cell: &Aabb, nt: usize, rend: usize, ord: Order) {
         let tris = self.tris;
         // The ray loop needs `self`; the index list is lent out meanwhile (no allocation).
         let idx = std::mem::take(&mut self.tri_idx);

@@ -9,7 +9,7 @@ use super::scratch::{reuse, Scratch};
 use super::screen::{pinhole_deviation, MAX_PIXEL_DEVIATION, PINHOLE_TOL};
 use super::tile_leaf::tile_ordered_rays;
 use super::top::TopTree;
-use super::{Counts, Dacrt, Mode, Task};
+use super::{clock, ns_since, Counts, Dacrt, Mode, Task};
 use crate::geom::{ConeQuery, PixelProjection};
 use crate::mem::reserve_exact_huge;
 use crate::rays::{RayBatch, RayLayout, MISS};
@@ -102,6 +102,7 @@ impl Dacrt {
         occ: &mut [bool],
         cost: Option<CostMut<'_>>,
     ) -> Tally<Counts> {
+        let c_setup = clock(self.cfg.phase_times);
         let ntri = scene.len();
         let len = range.len();
         let huge = self.cfg.huge_pages;
@@ -306,14 +307,19 @@ impl Dacrt {
         }
         // Rays (all of them, or those of incoherent packets): Algorithm 1 from the root, or
         // (batches without packets) down the top tree to Algorithm 1 from its leaves.
+        task.st.ns_setup += ns_since(c_setup);
+        let (leaves_before, mut lists) = (task.st.ns_leaves, 0);
+        let c_divide = clock(self.cfg.phase_times);
         let rend = task.partition_rays(&root, rend);
         if let Some(top) = top.filter(|t| ncones == 0 && t.root == root) {
             task.top_rec(top, 0, root, rend, 0, Order::NONE, true);
         } else {
+            let c_lists = clock(self.cfg.phase_times);
             let nlive = match cull {
                 Some((proj, tol, ys, cull)) => task.project_triangles(&proj, tol, ys, cull),
                 None => task.live_triangles(),
             };
+            lists = ns_since(c_lists);
             task.ray_rec(root, nlive, rend, 0, Order::NONE, true);
             if !task.cone_idx.is_empty() {
                 // Cones: Algorithm 2 from the root; the ray list is free again, and the
@@ -324,6 +330,11 @@ impl Dacrt {
                 task.cone_rec(root, nlive, cend, 0, Order::NONE);
             }
         }
+        // The dividing steps: the recursion's time less its leaves' and the list pass'.
+        let leaves = task.st.ns_leaves - leaves_before;
+        task.st.ns_lists += lists;
+        task.st.ns_divide += ns_since(c_divide).saturating_sub(leaves + lists);
+        let c_back = clock(self.cfg.phase_times);
         if !ANY && task.tile_leaves {
             let Packets::Tiles { width, rows, .. } = packets else {
                 unreachable!("tile leaves are for pinhole tiles only")
@@ -342,6 +353,7 @@ impl Dacrt {
                 }
             }
         }
+        task.st.ns_setup += ns_since(c_back);
         // The buffers go back to this share's slot for the next call.
         if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
             *g = Scratch {
@@ -372,7 +384,7 @@ impl Dacrt {
         scene: &Scene,
         rays: &RayBatch,
         plan: &Plan,
-    ) -> (Option<&TopTree>, Option<u64>) {
+    ) -> (Option<&TopTree>, Option<(u64, u64)>) {
         let wanted = !plan.packets
             && self.cfg.top_below > 0.0
             && rays.len() as f64 <= self.cfg.top_below * scene.len() as f64;
@@ -381,9 +393,10 @@ impl Dacrt {
         }
         let mut built = None;
         let top = self.top.get_or_init(|| {
+            let c = clock(self.cfg.phase_times);
             let span = [&self.span[0][..], &self.span[1][..], &self.span[2][..]];
             let t = TopTree::build(&self.cfg, span, scene.bounds());
-            built = Some(t.tests);
+            built = Some((t.tests, ns_since(c)));
             t
         });
         (Some(top), built)
