@@ -24,11 +24,11 @@ pub use cone_frustum::ConeFrustum;
 pub use cone_triangle::{cone_triangle, ConeF64};
 pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
-pub use projection::{PixelProjection, RectLanes};
+pub use projection::{PixelEdges, PixelProjection, RectLanes};
 pub use shapes::{Cone, Plane, Sphere};
 pub use slab::{BoxPair, SlabRay};
 pub use sphere_plane::PlaneFan;
-pub use triangle::{intersect_triangle, TriHit};
+pub use triangle::{hit_reach_ceil, hit_reach_floor, intersect_triangle, TriHit};
 pub use triangle4::{intersect_triangle4, Hit4, Tri4, TriFromOrigin};
 pub use tribox::{tri_box_edge_axes, tri_box_overlap};
 

@@ -170,6 +170,30 @@ pub fn is_degenerate(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
         || !(v0.is_finite() && v1.is_finite() && v2.is_finite())
 }
 
+/// A lower bound on the length `t·|dir|` of every hit the shared test reports, for any ray
+/// from `origin` (with `tmin >= 0`), on a triangle with box `[lo, hi]`: the distance from
+/// `origin` to the box, lowered by `1e-5` relative. Why: the gate puts `t` in the slab
+/// interval, whose entry is at least every axis's `(near − o)·(1/d)`, computed and then lowered
+/// (six roundings of `ε/2`, and `BOX_ENTRY_SLACK`), so on each axis `|t·d_a|` is within a
+/// relative `6ε` of the origin's gap `g_a` to the box or beyond it; the point's distance
+/// `t·|dir|` is then at least `|g|·(1 − 6ε)`, and `|g|` computed in f32 is within `3ε` of
+/// the exact one. (Rays moving away from the box on an axis where the origin is outside it
+/// have an empty interval, or one below 0: no hit.) With [`hit_reach_ceil`], a z-buffer cull
+/// for rays from one point: the front-to-back tile leaves of `dacrt`.
+#[inline]
+pub fn hit_reach_floor(origin: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    let g = (lo - origin).max(origin - hi).max(Vec3::ZERO);
+    g.length() * (1.0 - 1e-5)
+}
+
+/// An upper bound on `t·|dir|` (exact) for f32 `t >= 0` and `dir`: the computed product raised
+/// by `8ε` relative (the squares, their sum, the root and the product round by `ε/2` each).
+/// A triangle whose [`hit_reach_floor`] exceeds it has no hit at a `t` up to this one.
+#[inline]
+pub fn hit_reach_ceil(t: f32, dir: Vec3) -> f32 {
+    t * dir.length() * (1.0 + 8.0 * f32::EPSILON)
+}
+
 /// Geometric normal (not normalised, `(v1 - v0) × (v2 - v0)`).
 #[inline]
 pub fn normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
@@ -180,6 +204,66 @@ pub fn normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    /// Every hit the shared test reports lies at least `hit_reach_floor` from the origin, and
+    /// `hit_reach_ceil` bounds `t·|d|` from above: random rays at scales from 1e-3 to 1e4,
+    /// axis-plane triangles (flat boxes, where the gate moves `t`), grazing rays, origins inside
+    /// the box; not vacuous (on most triangles some hit is within twice the floor).
+    #[test]
+    fn hit_reach_bounds_every_hit() {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        let (mut hits, mut tight) = (0, 0);
+        for n in 0..20_000 {
+            let scale = 10f32.powf(rng.gen_range(-3.0..4.0));
+            let r = |rng: &mut rand_pcg::Pcg64Mcg| {
+                Vec3::new(
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                )
+            };
+            let mut v = [r(&mut rng), r(&mut rng), r(&mut rng)].map(|p| p * scale);
+            if n % 3 == 0 {
+                // In an axis plane.
+                let z = v[0].z;
+                v[1].z = z;
+                v[2].z = z;
+            }
+            let o = if n % 7 == 0 {
+                (v[0] + v[1] + v[2]) / 3.0 + r(&mut rng) * 0.01 * scale
+            } else {
+                r(&mut rng) * 3.0 * scale
+            };
+            let (lo, hi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+            let floor = hit_reach_floor(o, lo, hi);
+            let mut best = f32::INFINITY;
+            for _ in 0..20 {
+                let (a, b) = (rng.gen::<f32>(), rng.gen::<f32>());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let target = v[0] + (v[1] - v[0]) * a + (v[2] - v[0]) * b;
+                let d = (target - o) * rng.gen_range(0.1..10.0);
+                if let Some(h) = intersect_triangle(o, d, v[0], v[1], v[2], 0.0, f32::INFINITY) {
+                    hits += 1;
+                    let exact = h.t as f64 * d.as_dvec3().length();
+                    assert!(
+                        floor as f64 <= exact,
+                        "floor {floor} > {exact} for {v:?} from {o}"
+                    );
+                    assert!(hit_reach_ceil(h.t, d) as f64 >= exact);
+                    best = best.min(exact as f32);
+                }
+            }
+            tight += (best.is_finite() && best <= 2.0 * floor) as usize;
+        }
+        assert!(
+            hits > 100_000 && tight > 5_000,
+            "hits {hits}, tight {tight}"
+        );
+    }
 
     /// Rays nearly in the plane of a triangle far from their origin: Möller–Trumbore alone
     /// accepts some whose computed point lies far off the triangle (the phantom hits); the gate

@@ -83,6 +83,21 @@ pub struct Config {
     /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
     /// pixels; see `Task::project_triangles`). Default 256.
     pub pixel_leaf_c_limit: usize,
+    /// With tile leaves, closest hits (ours): a tile keeps a bound on the distance of its live
+    /// pixels' best hits so far (updated at the end of each leaf that hit it), and a triangle
+    /// beyond it skips the tile without a ray/triangle test: a z-buffer cull across the
+    /// front-to-back leaves. Exact, but it culled 1% of the pairs on Sponza from inside (a
+    /// tile stays open while one live pixel has no hit: sky) and gained nothing, so default
+    /// false (BENCHMARKS.md, § DACRT: large triangles). Adds 4 bytes per tile.
+    pub depth_cull: bool,
+    /// With tile leaves (ours): a triangle whose pixel rectangle in a leaf holds at least
+    /// this many pixels has them edge-tested against its projection first
+    /// (`geom::PixelEdges`), so that the ray/triangle test runs only on pixels near the
+    /// triangle (a large triangle covers about half its rectangle). `usize::MAX`: off. It
+    /// drops 20% of the pairs on Sponza and 54% on the Cornell box, but the pairs are not
+    /// where those leaves spend their time: no faster, so default off (BENCHMARKS.md, § DACRT:
+    /// large triangles).
+    pub edge_pixels: usize,
     /// Ask Linux for transparent huge pages (`madvise(MADV_HUGEPAGE)`, as Embree's allocator
     /// does) for the per-call buffers and the min/max lists: fewer first-touch page faults.
     /// Only a process's first call gains (warm calls reuse the buffers); pinned (`--pin`, as
@@ -129,6 +144,8 @@ impl Default for Config {
             pixel_cull: true,
             pixel_leaf: true,
             pixel_leaf_c_limit: 256,
+            edge_pixels: usize::MAX,
+            depth_cull: false,
             huge_pages: true,
             top_below: 2.0,
             top_leaf: 32,
@@ -156,6 +173,8 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "pixel_cull", doc: "camera batches: drop triangles that cover no pixel centre (ours)" },
     OptionDoc { key: "pixel_leaf", doc: "camera batches: tile leaves testing each triangle against the pixels of its rectangle (ours)" },
     OptionDoc { key: "pixel_leaf_c_limit", doc: "tile leaf when fewer active tiles than this" },
+    OptionDoc { key: "depth_cull", doc: "tile leaves: skip a tile for triangles beyond its live pixels' best hits (ours)" },
+    OptionDoc { key: "edge_pixels", doc: "tile leaves: edge-test the pixels of rectangles of at least this many pixels before the ray/triangle test (ours; usize::MAX: off)" },
     OptionDoc { key: "huge_pages", doc: "ask Linux for transparent huge pages for the per-call buffers" },
     OptionDoc { key: "top_below", doc: "batches without packets of at most this many rays per triangle walk a top tree kept between calls (ours; 0: off)" },
     OptionDoc { key: "top_leaf", doc: "the top tree's leaves hold at most this many triangles" },
@@ -315,6 +334,27 @@ pub const PRESETS: &[Preset] = &[
             ("top_leaf", "200"),
             ("top_growth", "3"),
             ("phase_times", "true"),
+        ],
+    },
+    Preset {
+        name: "tile leaves with edge tests and depth culling, tiny leaves",
+        opts: &[
+            ("mode", "packet"),
+            ("tasks", "2"),
+            ("edge_pixels", "0"),
+            ("depth_cull", "true"),
+            ("pixel_leaf_c_limit", "2"),
+            ("p_limit", "2"),
+            ("c_limit", "1"),
+        ],
+    },
+    Preset {
+        name: "tile leaves with edge tests of large rectangles and depth culling",
+        opts: &[
+            ("mode", "auto"),
+            ("tasks", "1"),
+            ("edge_pixels", "6"),
+            ("depth_cull", "true"),
         ],
     },
     Preset {

@@ -109,6 +109,13 @@
 //!   once per scene state into a tree with triangle lists at its leaves; sparse batches walk
 //!   their rays down it and start Algorithm 1 at its leaves, so a few hundred bounce rays no
 //!   longer stream every triangle a dozen times (BENCHMARKS.md, § DACRT: sparse batches).
+//! - **Edge tests and depth culling in tile leaves** (ours, `Config::edge_pixels`,
+//!   `Config::depth_cull`, `tile_leaf.rs`; both off by default): a triangle whose pixel
+//!   rectangle is large tests its three edges against each 8×8 tile
+//!   ([`crate::geom::PixelEdges`]), and a tile whose pixels all hit something skips triangles
+//!   that cannot reach as near ([`crate::geom::hit_reach_floor`]). They cut ray/triangle pairs
+//!   (Sponza −20%, Cornell −54% with the edge test) but not time (BENCHMARKS.md, § DACRT:
+//!   large triangles).
 //! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
 //!   the rays (bands of tile rows for camera rays) and their own index lists.
 //! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
@@ -136,7 +143,7 @@
 //!   rays that groups them into compact packets). Camera batches with tile leaves (every
 //!   ray from the eye within 2 pixels of its pixel, one `tmin`) have no ray list but
 //!   `8·T·K` (pixel rectangles) and, per tile, 1036 bytes besides its cone: 64 ray records of
-//!   16 bytes, and 12 for the leaves' bookkeeping.
+//!   16 bytes, and 12 for the leaves' bookkeeping (16 with `depth_cull`).
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
@@ -284,6 +291,11 @@ struct Task<'a, const ANY: bool> {
     /// Tile leaves: a leaf below this many live tiles (see `project_triangles`).
     leaf_tiles: usize,
     rects: Vec<[u16; 4]>,
+    /// Tile leaves: the projection and tolerance the rectangles were made with, for the edge
+    /// test of the pixels of rectangles of at least `edge_pixels` pixels
+    /// (`Config::edge_pixels`; `None`: off).
+    edge_test: Option<(PixelProjection, f64)>,
+    edge_pixels: u64,
     /// Tile leaves: the rays in tile order (pixel `bit` of tile `c` at `64·c + bit`): the
     /// direction, and in `w` the cut-off (closest hit: the best `t` so far, the z-buffer;
     /// any-hit: `tmax`), so a pair reads one 16-byte record; `tmin0` is every ray's `tmin`.
@@ -293,6 +305,13 @@ struct Task<'a, const ANY: bool> {
     dlow: f32,
     touched: Vec<u64>,
     touched_list: Vec<u32>,
+    /// Tile leaves, closest hits, with `depth_cull` (`Config::depth_cull`): per tile, an upper
+    /// bound on the distance `t·|d|` of its live pixels' best hits so far
+    /// ([`hit_reach_ceil`](crate::geom::hit_reach_ceil); +inf until each has one), lowered at
+    /// the end of every leaf that hit it: a triangle farther from the eye
+    /// ([`hit_reach_floor`](crate::geom::hit_reach_floor)) skips the tile. Empty otherwise.
+    zreach: Vec<f32>,
+    depth_cull: bool,
     st: Counts,
     /// Per-ray cost, when asked (local ray indices, as `t`/`occ`); see [`Task::charge`].
     cost: Option<CostMut<'a>>,
@@ -315,6 +334,21 @@ crate::counters! {
         nodes,
         /// Naive leaves (and tile leaves).
         leaves,
+        /// Tile leaves: triangles whose rectangle met the leaf cell's pixels (once per leaf).
+        leaf_tris,
+        /// Tile leaves: (triangle, tile) pairs visited under those rectangles.
+        leaf_tiles,
+        /// Tile leaves: of those, the pairs with live pixels (sent to the ray/triangle test).
+        leaf_live_tiles,
+        /// Tile leaves: pixels hit (each hit a ray/triangle test reported, a z-buffer write
+        /// when closer).
+        leaf_hits,
+        /// Tile leaves: live pixels of triangles' rectangles the edge test dropped before the
+        /// ray/triangle test (`Config::edge_pixels`).
+        edge_culled,
+        /// Tile leaves: live pixels of triangles' rectangles skipped because the triangle lies
+        /// beyond every best hit of the tile (`Config::depth_cull`).
+        depth_culled,
         /// 1 when this call built the top tree (its triangle/box tests are in `tri_box`).
         top_built,
         /// With `phase_times`: nanoseconds (summed over tasks) of set-up and write-back (ray

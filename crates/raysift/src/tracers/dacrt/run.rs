@@ -169,6 +169,8 @@ impl Dacrt {
             cterm: 0,
             tile_leaves: false,
             leaf_tiles: self.cfg.pixel_leaf_c_limit,
+            edge_test: None,
+            edge_pixels: u64::MAX,
             // Filled by the projection pass, in triangle order.
             rects: reuse(sc.rects, 0, huge),
             tile_rays: reuse(sc.tile_rays, 0, huge),
@@ -176,6 +178,8 @@ impl Dacrt {
             dlow: 0.0,
             touched: reuse(sc.touched, 0, huge),
             touched_list: reuse(sc.touched_list, 0, huge),
+            zreach: reuse(sc.zreach, 0, huge),
+            depth_cull: self.cfg.depth_cull,
             st: Counts::default(),
             cost,
             peak: 0,
@@ -236,6 +240,10 @@ impl Dacrt {
                 let uniform = pinhole || rays.tmin[range.clone()].iter().all(|&t| t == tmin0);
                 if self.cfg.pixel_leaf && uniform && tiles_fit {
                     task.tile_leaves = true;
+                    if self.cfg.edge_pixels != usize::MAX {
+                        task.edge_test = Some((proj, tol));
+                        task.edge_pixels = self.cfg.edge_pixels as u64;
+                    }
                     task.tmin0 = tmin0;
                     task.dlow = (range.clone())
                         .map(|i| rays.dx[i].abs().max(rays.dy[i].abs()).max(rays.dz[i].abs()))
@@ -246,6 +254,10 @@ impl Dacrt {
                     reserve_exact_huge(&mut task.touched, ncones, huge);
                     task.touched.resize(ncones, 0);
                     reserve_exact_huge(&mut task.touched_list, ncones, huge);
+                    if !ANY && task.depth_cull {
+                        reserve_exact_huge(&mut task.zreach, ncones, huge);
+                        task.zreach.resize(ncones, f32::INFINITY);
+                    }
                 }
                 if self.cfg.pixel_cull || task.tile_leaves {
                     let ys = [row0 as i64, (row0 + rows) as i64 - 1];
@@ -367,6 +379,7 @@ impl Dacrt {
                 tile_rays: task.tile_rays,
                 touched: task.touched,
                 touched_list: task.touched_list,
+                zreach: task.zreach,
             };
         }
         Tally {

@@ -22,6 +22,7 @@ pub(super) struct Scratch {
     pub(super) tile_rays: Vec<Vec4>,
     pub(super) touched: Vec<u64>,
     pub(super) touched_list: Vec<u32>,
+    pub(super) zreach: Vec<f32>,
 }
 
 impl Scratch {
@@ -39,6 +40,7 @@ impl Scratch {
             + b(&self.tile_rays)
             + b(&self.touched)
             + b(&self.touched_list)
+            + b(&self.zreach)
     }
 }
 

@@ -6,7 +6,7 @@ use super::order::Order;
 use super::packets::{tile_mask, Packets};
 use super::partition::{prefetch, PREFETCH};
 use super::Task;
-use crate::geom::{Aabb, TriFromOrigin};
+use crate::geom::{hit_reach_ceil, hit_reach_floor, Aabb, TriFromOrigin};
 use crate::mem::reserve_exact_huge;
 use crate::rays::RayBatch;
 use crate::tracer::closer;
@@ -61,12 +61,42 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 continue;
             }
             let rect = [x0, x1, y0, y1];
+            self.st.leaf_tris += 1;
+            // Large rectangles: their pixels are edge-tested first (`PixelEdges`).
+            let large = self.edge_test.is_some()
+                && ((x1 - x0 + 1) * (y1 - y0 + 1)) as u64 >= self.edge_pixels;
             // Set up on the first live pixel: triangles behind finished pixels (most, late in
             // a front-to-back recursion) cost only their rectangle.
             let mut tri = None;
+            let mut edges = None;
+            let mut near = None;
             let mut pairs = |task: &mut Self, tile: usize| {
-                let m = tile_mask(tile % tw, tile / tw, rect) & !task.cones[tile].done;
+                let (tx, ty) = (tile % tw, tile / tw);
+                let mut m = tile_mask(tx, ty, rect) & !task.cones[tile].done;
+                task.st.leaf_tiles += 1;
+                if m != 0 && !task.zreach.is_empty() {
+                    let near = *near.get_or_insert_with(|| {
+                        let (a, b, c) = (tris.v0[t], tris.v1[t], tris.v2[t]);
+                        hit_reach_floor(task.apex, a.min(b).min(c), a.max(b).max(c))
+                    });
+                    if near > task.zreach[tile] {
+                        task.st.depth_culled += m.count_ones() as u64;
+                        m = 0;
+                    }
+                }
+                if m != 0 && large {
+                    let e = edges.get_or_insert_with(|| {
+                        let (proj, tol) = task.edge_test.as_ref()?;
+                        proj.triangle_edges([tris.v0[t], tris.v1[t], tris.v2[t]], *tol)
+                    });
+                    if let Some(e) = e {
+                        let before = m.count_ones() as u64;
+                        m = e.mask8x8(tx as i64 * 8, task.row0 + ty as i64 * 8, m);
+                        task.st.edge_culled += before - m.count_ones() as u64;
+                    }
+                }
                 if m != 0 {
+                    task.st.leaf_live_tiles += 1;
                     let tri = tri.get_or_insert_with(|| {
                         TriFromOrigin::new(task.apex, tris.v0[t], tris.v1[t], tris.v2[t], task.dlow)
                     });
@@ -97,17 +127,28 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 self.cones[tile].done |= m;
                 continue;
             }
-            if !self.terminate {
-                continue;
-            }
             // Four pixels at a time.
-            while m != 0 {
+            while self.terminate && m != 0 {
                 let (bits, lanes) = pop4(&mut m);
                 let (d, bt) = self.tile_lanes(tile, bits);
                 let done = Self::final_hit4(cell, self.apex, d, self.tmin0, bt, &ord);
                 for (l, &b) in bits.iter().enumerate().take(lanes) {
                     self.cones[tile].done |= ((done >> l & 1) as u64) << b;
                 }
+            }
+            if !self.zreach.is_empty() {
+                // The live pixels' farthest best hit (finished pixels are never tested again).
+                let recs = &self.tile_rays[tile * 64..tile * 64 + 64];
+                let mut live = !self.cones[tile].done;
+                let mut reach = 0.0f32;
+                while live != 0 {
+                    let r = recs[live.trailing_zeros() as usize];
+                    live &= live - 1;
+                    let h = hit_reach_ceil(r.w, r.truncate());
+                    // NaN-safe: a NaN bound makes the tile's NaN, which culls nothing.
+                    reach = if h > reach || h.is_nan() { h } else { reach };
+                }
+                self.zreach[tile] = reach;
             }
         }
         self.touched_list = list;
@@ -161,6 +202,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 let l = hit.trailing_zeros() as usize;
                 hit &= hit - 1;
                 let bit = bits[l];
+                self.st.leaf_hits += 1;
                 let k = (ty * 8 + bit / 8) * width + tx * 8 + bit % 8;
                 if ANY {
                     self.occ[k] = true;
