@@ -155,21 +155,7 @@ fn culled_triangles_are_hit_by_no_ray() {
     let (w, h) = (40u32, 30u32);
     let (p, exact) = fit_camera(&c, w, h);
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
-    // Jittered: each direction moved up to half a pixel towards its neighbours.
-    let mut jittered = exact.clone();
-    for k in 0..exact.len() {
-        let (i, j) = (k % w as usize, k / w as usize);
-        let d = exact.dir(k);
-        let di = exact.dir(if i + 1 < w as usize { k + 1 } else { k - 1 }) - d;
-        let dj = exact.dir(if j + 1 < h as usize {
-            k + w as usize
-        } else {
-            k - w as usize
-        }) - d;
-        let (a, b): (f32, f32) = (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5));
-        let n = (d + a * di + b * dj).normalize();
-        (jittered.dx[k], jittered.dy[k], jittered.dz[k]) = (n.x, n.y, n.z);
-    }
+    let jittered = jitter(&exact, w, h, &mut rng);
     let tol_of = |rays: &crate::rays::RayBatch| {
         (0..rays.len())
             .map(|k| p.deviation(rays.dir(k), k % w as usize, k / w as usize))
@@ -392,20 +378,7 @@ fn edge_masks_keep_every_hit_pixel() {
     let (w, h) = (48u32, 40u32);
     let (p, exact) = fit_camera(&c, w, h);
     let mut rng = rand::rngs::StdRng::seed_from_u64(5);
-    let mut jittered = exact.clone();
-    for k in 0..exact.len() {
-        let (i, j) = (k % w as usize, k / w as usize);
-        let d = exact.dir(k);
-        let di = exact.dir(if i + 1 < w as usize { k + 1 } else { k - 1 }) - d;
-        let dj = exact.dir(if j + 1 < h as usize {
-            k + w as usize
-        } else {
-            k - w as usize
-        }) - d;
-        let (a, b): (f32, f32) = (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5));
-        let n = (d + a * di + b * dj).normalize();
-        (jittered.dx[k], jittered.dy[k], jittered.dz[k]) = (n.x, n.y, n.z);
-    }
+    let jittered = jitter(&exact, w, h, &mut rng);
     let (xs, ys) = ([0, w as i64 - 1], [0, h as i64 - 1]);
     let (mut tested, mut dropped, mut kept_hits) = (0u64, 0u64, 0u64);
     for rays in [&exact, &jittered] {
@@ -482,4 +455,28 @@ fn edge_masks_keep_every_hit_pixel() {
     // Behind the eye: no edge test.
     let behind = [c.eye + Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::X];
     assert!(p.triangle_edges(behind, 0.01).is_none());
+}
+
+/// The camera rays with each direction moved up to half a pixel towards its neighbours.
+fn jitter(
+    exact: &crate::rays::RayBatch,
+    w: u32,
+    h: u32,
+    rng: &mut impl Rng,
+) -> crate::rays::RayBatch {
+    let mut jittered = exact.clone();
+    for k in 0..exact.len() {
+        let (i, j) = (k % w as usize, k / w as usize);
+        let d = exact.dir(k);
+        let di = exact.dir(if i + 1 < w as usize { k + 1 } else { k - 1 }) - d;
+        let dj = exact.dir(if j + 1 < h as usize {
+            k + w as usize
+        } else {
+            k - w as usize
+        }) - d;
+        let (a, b): (f32, f32) = (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5));
+        let n = (d + a * di + b * dj).normalize();
+        (jittered.dx[k], jittered.dy[k], jittered.dz[k]) = (n.x, n.y, n.z);
+    }
+    jittered
 }
