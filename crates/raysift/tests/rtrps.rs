@@ -2,7 +2,7 @@
 //! planes are tangent to spheres or pass through vertices and edges, grid origins inside
 //! spheres, packets of one ray, grids crossing the scene's bounds (hemispheres from surface
 //! points), rigid motion of one part of a multi-mesh scene and deformation every frame, the
-//! hierarchy's bounds after updates, and the counters (culling and the binary tree remove plane
+//! hierarchy's bounds after updates, many moving parts through the part tree, and the counters (culling and the binary tree remove plane
 //! tests without changing answers). Every case compares with `naive` bit for bit, in the
 //! defaults and every preset.
 
@@ -361,6 +361,83 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
         t.spheres().parts[0].leaves.len() as u64
     );
     t.spheres().validate(&scene).unwrap();
+}
+
+/// Sixty parts in a lattice, every one spinning about its own axis and drifting each frame, a
+/// few deforming: the part tree (rebuilt at every update) has many levels, answers equal
+/// `naive` every frame on camera tiles, grids and random rays, its spheres bound the moved
+/// parts, and a group visits fewer spheres than a walk over every part would test.
+#[test]
+fn many_moving_parts_through_the_part_tree() {
+    let mut meshes = Vec::new();
+    for k in 0..60u32 {
+        let base = if k % 3 == 0 {
+            procedural::soup(12, k as u64)
+        } else {
+            procedural::icosphere(20 + k as usize)
+        };
+        let mut m = base.meshes()[0].clone();
+        let (x, y, z) = ((k % 5) as f32, (k / 5 % 4) as f32, (k / 20) as f32);
+        m.transform = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(0.3),
+            Quat::IDENTITY,
+            Vec3::new(x, y, z) * 2.5,
+        );
+        meshes.push(m);
+    }
+    let scene = Scene::from_meshes("lattice of parts", meshes).unwrap();
+    let cam = Camera::framing(&scene.bounds(), 50.0, 1.0).rays(48, 40);
+    let origins: Vec<Vec3> = (0..10)
+        .map(|k| Vec3::new(k as f32 * 1.1, 3.7, 9.0))
+        .collect();
+    let g = grids(&origins, Vec3::new(0.1, 0.0, -1.0), 8, 0.6);
+    let random = generate::random_in_box(&scene.bounds(), 500, 9);
+    let step = |s: &mut Scene, f: usize| {
+        for m in 0..s.meshes().len() {
+            let xf = s.meshes()[m].transform;
+            let axis = Vec3::new(1.0, m as f32, 2.0).normalize();
+            let spin = Quat::from_axis_angle(axis, 0.3 + 0.01 * m as f32);
+            let drift = Vec3::new(0.05, -0.03 * (m % 3) as f32, 0.02) * f as f32;
+            let t = Affine3A::from_translation(Vec3::from(xf.translation) + drift);
+            s.set_transform(
+                m,
+                t * Affine3A::from_quat(spin) * Affine3A::from_mat3(xf.matrix3.into()),
+            )
+            .unwrap();
+        }
+        if f.is_multiple_of(2) {
+            let pos: Vec<Vec3> = s.meshes()[7].positions.iter().map(|p| *p * 1.2).collect();
+            s.replace_positions(7, pos).unwrap();
+        }
+    };
+    for rays in [&cam, &g, &random] {
+        if let Err(e) = check_animation(&scene, 4, step, rays) {
+            panic!("{e}");
+        }
+    }
+    // Narrow grids, each of which sees a few parts.
+    let narrow = grids(&origins, Vec3::new(0.1, 0.0, -1.0), 8, 0.03);
+    let mut scene = scene;
+    let mut t = Rtrps::new(Default::default()).unwrap();
+    for f in 0..3 {
+        step(&mut scene, f);
+        t.prepare(&scene).unwrap();
+        let tree = t.spheres();
+        tree.validate(&scene).unwrap();
+        assert!(
+            tree.pnode_c.len() >= 15,
+            "{} part tree nodes",
+            tree.pnode_c.len()
+        );
+        let (_, st) = t.intersect_timed(&scene, &narrow).unwrap();
+        // Without the tree each of the 10 groups tests all 60 part spheres.
+        let tested = st.work.get("part_tests");
+        assert_eq!(st.work.get("groups"), 10);
+        assert!(
+            tested > 0 && tested < 10 * 60 / 2,
+            "{tested} part spheres tested"
+        );
+    }
 }
 
 /// Culling and the binary tree remove plane tests (and never add reproduced rays); the group

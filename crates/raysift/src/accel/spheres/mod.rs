@@ -29,6 +29,15 @@
 //! radius is the local one times `σ`, a bound on the transform's largest stretch (Gershgorin on
 //! `AᵀA`; 1 for rigid motions). Parents bound children: `R = max |c_i − C| + r_i`. Tracers add an
 //! absolute margin `SLACK · scale` for the rounding of the transforms (see [`SLACK`]).
+//!
+//! **Part tree** (ours; the paper's scene sphere holds its few parts directly): above the parts,
+//! a binary tree of world-frame spheres over the parts, split at the median of their world
+//! centres along the widest axis, down to bottom nodes of at most [`PART_CLUSTER`] parts; each
+//! node bounds its parts' world spheres directly. Without it every ray group
+//! tests every part sphere, which dominates scenes of thousands of small rigid parts
+//! (BENCHMARKS.md § RTRPS, Table 6). Parts move, so the tree is rebuilt at every update from
+//! the parts' world spheres: O(P log P) in the parts (median selections), no triangle touched, and its node count
+//! (at most 2P) and buffers stay the same, so memory does not change from frame to frame.
 
 use crate::geom::Aabb;
 use crate::scene::{Change, Scene};
@@ -65,6 +74,9 @@ pub enum Levels {
 
 /// No child: [`SphereTree::inner_kids`] of a bottom sphere.
 pub const NO_KID: u32 = u32::MAX;
+
+/// Parts per bottom node of the part tree.
+pub const PART_CLUSTER: usize = 4;
 
 /// Deepest binary tree walked (runs halve at each level, so 2^64 leaves would be needed).
 pub const MAX_DEPTH: usize = 64;
@@ -136,10 +148,21 @@ pub struct SphereTree {
     pub leaf_tris: Vec<[u32; 2]>,
     /// Primitive ids in leaf order.
     pub tris: Vec<u32>,
-    /// Scene sphere (world).
+    /// Scene sphere (world): the part tree's root.
     pub root_c: Vec3,
     /// Scene sphere radius.
     pub root_r: f32,
+    /// Part tree node centres (world), preorder, the root (= the scene sphere) first.
+    pub pnode_c: Vec<Vec3>,
+    /// Part tree node radii (world).
+    pub pnode_r: Vec<f32>,
+    /// Children of each part tree node, `[NO_KID, NO_KID]` for a bottom node, whose parts are
+    /// its [`SphereTree::pnode_parts`].
+    pub pnode_kids: Vec<[u32; 2]>,
+    /// Parts below each part tree node: a range of [`SphereTree::part_order`].
+    pub pnode_parts: Vec<[u32; 2]>,
+    /// Part indices in part tree order.
+    pub part_order: Vec<u32>,
     /// Build options.
     pub cfg: Option<BuildConfig>,
     /// Part of each mesh (`u32::MAX` for empty meshes): updates find a moved mesh's part in O(1).
@@ -410,19 +433,15 @@ impl SphereTree {
             self.inner_c[k] = c;
             self.inner_r[k] = r;
         }
+        // The part sphere bounds the leaves directly (linear in them): bounding the inner
+        // spheres instead adds each level's slack (2.6 against 1.1 local radii measured on
+        // icospheres of 40 triangles), and the part tree above is built from these spheres.
         let leaves = part.leaves.clone();
-        let (c, r) = if part.inner.is_empty() {
-            parent_sphere(
-                leaves
-                    .clone()
-                    .map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])),
-            )
-        } else {
-            parent_sphere(
-                self.top(part)
-                    .map(|k| (self.inner_c[k as usize], self.inner_r[k as usize])),
-            )
-        };
+        let (c, r) = parent_sphere(
+            leaves
+                .clone()
+                .map(|k| (self.leaf_c[k as usize], self.leaf_r[k as usize])),
+        );
         let extent = leaves
             .map(|k| self.leaf_c[k as usize].abs().max_element() + self.leaf_r[k as usize])
             .fold(c.abs().max_element() + r, f32::max);
@@ -464,18 +483,64 @@ impl SphereTree {
         part.world_radius = part.sigma * part.radius + 4.0 * SLACK * scale;
     }
 
+    /// Rebuilds the part tree from the parts' world spheres (see the module doc); its root is
+    /// the scene sphere.
     fn place_root(&mut self) {
-        let (c, r) = parent_sphere(self.parts.iter().map(|p| (p.world_centre, p.world_radius)));
-        (self.root_c, self.root_r) = if self.parts.is_empty() {
-            (Vec3::ZERO, 0.0)
-        } else {
-            (c, r)
-        };
+        self.pnode_c.clear();
+        self.pnode_r.clear();
+        self.pnode_kids.clear();
+        self.pnode_parts.clear();
+        self.part_order.clear();
+        (self.root_c, self.root_r) = (Vec3::ZERO, 0.0);
+        if self.parts.is_empty() {
+            return;
+        }
+        self.part_order.extend(0..self.parts.len() as u32);
+        self.push_part_node(0, self.parts.len() as u32);
+        self.pnode_c.resize(self.pnode_kids.len(), Vec3::ZERO);
+        self.pnode_r.resize(self.pnode_kids.len(), 0.0);
+        for k in 0..self.pnode_kids.len() {
+            // Each node bounds its parts directly (O(P log P) in all, as the sort): bounding
+            // its children's spheres would add each level's slack.
+            let [a, e] = self.pnode_parts[k];
+            let (c, r) = parent_sphere(self.part_order[a as usize..e as usize].iter().map(|&p| {
+                let p = &self.parts[p as usize];
+                (p.world_centre, p.world_radius)
+            }));
+            (self.pnode_c[k], self.pnode_r[k]) = (c, r);
+        }
+        (self.root_c, self.root_r) = (self.pnode_c[0], self.pnode_r[0]);
     }
 
-    /// Spheres in all (scene, parts, inner, leaves).
+    /// Appends the part tree node over `part_order[a..e]` and its subtree in preorder, splitting
+    /// at the median of the parts' world centres along their widest axis; returns the node.
+    fn push_part_node(&mut self, a: u32, e: u32) -> u32 {
+        let k = self.pnode_kids.len() as u32;
+        self.pnode_parts.push([a, e]);
+        self.pnode_kids.push([NO_KID; 2]);
+        if (e - a) as usize > PART_CLUSTER {
+            let parts = &self.parts;
+            let ids = &mut self.part_order[a as usize..e as usize];
+            let mut b = Aabb::EMPTY;
+            for &p in ids.iter() {
+                b = b.grow(parts[p as usize].world_centre);
+            }
+            let axis = (b.max - b.min).max_position();
+            let mid = ids.len() / 2;
+            ids.select_nth_unstable_by(mid, |&x, &y| {
+                let c = |p: u32| parts[p as usize].world_centre[axis];
+                c(x).total_cmp(&c(y))
+            });
+            let x = self.push_part_node(a, a + mid as u32);
+            let y = self.push_part_node(a + mid as u32, e);
+            self.pnode_kids[k as usize] = [x, y];
+        }
+        k
+    }
+
+    /// Spheres in all (part tree nodes, the scene sphere among them; parts, inner, leaves).
     pub fn spheres(&self) -> usize {
-        1 + self.parts.len() + self.inner_c.len() + self.leaf_c.len()
+        self.pnode_c.len().max(1) + self.parts.len() + self.inner_c.len() + self.leaf_c.len()
     }
 
     /// Bytes held.
@@ -489,6 +554,9 @@ impl SphereTree {
             + self.leaf_r.capacity() * 4
             + self.leaf_tris.capacity() * 8
             + self.tris.capacity() * 4
+            + self.pnode_c.capacity() * 12
+            + (self.pnode_r.capacity() + self.part_order.capacity()) * 4
+            + (self.pnode_kids.capacity() + self.pnode_parts.capacity()) * 8
     }
 
     /// Checks that every sphere bounds what it must, in world space, against the scene: each
@@ -545,6 +613,39 @@ impl SphereTree {
                     return Err(format!("part {pi}: leaf {l} outside the part sphere"));
                 }
             }
+        }
+        // The part tree: every part in one bottom node, every node holds its parts' world
+        // spheres, children split their parent's parts.
+        let mut placed = vec![0u32; self.parts.len()];
+        for k in 0..self.pnode_kids.len() {
+            // f32 distances round by a few ulps of the coordinates.
+            let rk = self.pnode_r[k] * (1.0 + 1e-6);
+            let ck = self.pnode_c[k];
+            let rk = rk + SLACK * (ck.abs().max_element() + rk);
+            let [a, e] = self.pnode_parts[k];
+            for &p in &self.part_order[a as usize..e as usize] {
+                let q = &self.parts[p as usize];
+                if (q.world_centre - ck).length() + q.world_radius > rk {
+                    return Err(format!("part {p} outside part tree node {k}"));
+                }
+            }
+            match self.pnode_kids[k] {
+                [NO_KID, _] => {
+                    (a..e).for_each(|i| placed[self.part_order[i as usize] as usize] += 1)
+                }
+                [x, y] => {
+                    let (px, py) = (self.pnode_parts[x as usize], self.pnode_parts[y as usize]);
+                    if px[0] != a || px[1] != py[0] || py[1] != e {
+                        return Err(format!("part tree node {k}'s children split it wrongly"));
+                    }
+                }
+            }
+        }
+        if let Some(p) = placed.iter().position(|&c| c != 1) {
+            return Err(format!(
+                "part {p} is in {} bottom nodes of the part tree",
+                placed[p]
+            ));
         }
         if let Some(i) = seen.iter().position(|s| !s) {
             if !scene.meshes().is_empty() {

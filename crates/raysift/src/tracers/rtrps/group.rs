@@ -1,10 +1,10 @@
 //! One ray group as ray-planes (§2.2–2.3, Algorithm 2, §3.1): the grid frame and its row and
-//! column fans, the sphere walk (scene → parts → inner → leaves) with each sphere tested by the
+//! column fans, the sphere walk (part tree → parts → inner → leaves) with each sphere tested by the
 //! planes its parent hit, and the rays reproduced at leaves (a hit row × a hit column), each
 //! tested against the leaf's triangles with the shared triangle test.
 
 use super::{random, Config, Counts};
-use crate::accel::spheres::{SphereTree, MAX_DEPTH, NO_KID, SLACK};
+use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
 use crate::geom::intersect_triangle;
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
 use crate::rays::{RayBatch, MISS};
@@ -50,6 +50,28 @@ struct Frame {
 }
 
 impl Frame {
+    /// Part `p`'s frame in the grid's (rows `r`, origin `o`): `M = R·A`, `b = R·(t − o)`, in f64.
+    fn of(p: &Part, r: &[DVec3; 3], o64: DVec3, o: Vec3) -> Self {
+        let a = [
+            p.xf.matrix3.x_axis,
+            p.xf.matrix3.y_axis,
+            p.xf.matrix3.z_axis,
+        ]
+        .map(|c| DVec3::from(Vec3::from(c)));
+        let t = DVec3::from(Vec3::from(p.xf.translation)) - o64;
+        let m = r.map(|row| DVec3::new(row.dot(a[0]), row.dot(a[1]), row.dot(a[2])).as_vec3());
+        let b = DVec3::new(r[0].dot(t), r[1].dot(t), r[2].dot(t)).as_vec3();
+        let scale = p.sigma * p.extent
+            + Vec3::from(p.xf.translation).abs().max_element()
+            + o.abs().max_element();
+        Frame {
+            m,
+            b,
+            sigma: p.sigma,
+            e: 2.0 * SLACK * scale,
+        }
+    }
+
     #[inline(always)]
     fn apply(&self, p: Vec3) -> Vec3 {
         Vec3::new(self.m[0].dot(p), self.m[1].dot(p), self.m[2].dot(p)) + self.b
@@ -80,7 +102,6 @@ pub struct Scratch {
     done: [u64; MAX_FAN],
     rows: PlaneFan,
     cols: PlaneFan,
-    frames: Vec<Frame>,
     /// Depth cull of the current group: every ray has `tmin >= 0` and a direction `u.z > 0` in
     /// the grid frame, so every point a ray can report lies in `0 <= z <= zmax`.
     depth: Option<f32>,
@@ -98,7 +119,6 @@ impl Scratch {
             done: [0; MAX_FAN],
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
-            frames: Vec::new(),
             depth: None,
         }
     }
@@ -108,7 +128,6 @@ impl Scratch {
         self.g.capacity() * 12
             + (self.bt.capacity() + self.bp.capacity() + self.bu.capacity() + self.bv.capacity())
                 * 4
-            + self.frames.capacity() * std::mem::size_of::<Frame>()
             + std::mem::size_of::<Self>()
     }
 }
@@ -314,6 +333,169 @@ fn sphere(
     (cm != 0).then_some((rm, cm))
 }
 
+/// What the walk of one group reads besides its scratch.
+struct Walk<'a> {
+    tree: &'a SphereTree,
+    cfg: &'a Config,
+    soup: &'a TriangleSoup,
+    rays: &'a RayBatch,
+    g: GroupSpec,
+    start: usize,
+}
+
+impl Walk<'_> {
+    /// Part `part` (frame `f`) for the rows and columns `pm` its part tree node hit: its sphere,
+    /// then its inner spheres and leaves. True when every ray of the group is done (any hit).
+    #[allow(clippy::too_many_arguments)]
+    fn part(
+        &self,
+        part: &Part,
+        f: &Frame,
+        pm: (u64, u64),
+        s: &mut Scratch,
+        out: &mut Out<'_, '_>,
+        mut cost: Option<&mut CostMut<'_>>,
+        n: &mut Counts,
+        live: &mut usize,
+    ) -> bool {
+        let (tree, cfg) = (self.tree, self.cfg);
+        n.part_tests += 1;
+        let Some(pm) = f.sphere(s, part.centre, part.radius, pm, cfg, n) else {
+            return false;
+        };
+        if part.inner.is_empty() {
+            for l in part.leaves.clone() {
+                self.leaf(l as usize, f, pm, s, out, cost.as_deref_mut(), n, live);
+                if *live == 0 {
+                    return true;
+                }
+            }
+            return false;
+        }
+        // Inner spheres depth first, each tested by the planes its parent hit (flat: every top
+        // sphere is a bottom one); a fixed stack, deep enough for any binary tree over u32
+        // leaves.
+        let mut stack = [(0u32, (0u64, 0u64)); MAX_DEPTH + 1];
+        for top in tree.top(part) {
+            stack[0] = (top, pm);
+            let mut sp = 1;
+            while sp > 0 {
+                sp -= 1;
+                let (k, mk) = stack[sp];
+                let k = k as usize;
+                let Some(km) = f.sphere(s, tree.inner_c[k], tree.inner_r[k], mk, cfg, n) else {
+                    continue;
+                };
+                match tree.inner_kids[k] {
+                    [NO_KID, _] => {
+                        let [l0, l1] = tree.inner_leaves[k];
+                        for l in l0..l1 {
+                            self.leaf(l as usize, f, km, s, out, cost.as_deref_mut(), n, live);
+                        }
+                        if *live == 0 {
+                            return true;
+                        }
+                    }
+                    [a, b] => {
+                        stack[sp] = (b, km);
+                        stack[sp + 1] = (a, km);
+                        sp += 2;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// Leaf `l`: its sphere against the planes `pm`, then each reproduced ray (a hit row × a hit
+    /// column) against its triangles with the shared test.
+    #[allow(clippy::too_many_arguments)]
+    fn leaf(
+        &self,
+        l: usize,
+        f: &Frame,
+        pm: (u64, u64),
+        s: &mut Scratch,
+        out: &mut Out<'_, '_>,
+        mut cost: Option<&mut CostMut<'_>>,
+        n: &mut Counts,
+        live: &mut usize,
+    ) {
+        let (tree, g, rays, soup, start) = (self.tree, self.g, self.rays, self.soup, self.start);
+        let Some((rm, cm)) = f.sphere(s, tree.leaf_c[l], tree.leaf_r[l], pm, self.cfg, n) else {
+            return;
+        };
+        let cols = g.cols;
+        let [t0, t1] = tree.leaf_tris[l];
+        let ids = &tree.tris[t0 as usize..t1 as usize];
+        let mut rbits = rm;
+        while rbits != 0 {
+            let a = rbits.trailing_zeros() as usize;
+            rbits &= rbits - 1;
+            let i = s.rows.order[a] as usize;
+            let mut cbits = cm;
+            while cbits != 0 {
+                let b = cbits.trailing_zeros() as usize;
+                cbits &= cbits - 1;
+                let j = s.cols.order[b] as usize;
+                if s.done[i] >> j & 1 == 1 {
+                    continue;
+                }
+                let r = g.ray(i, j);
+                let k = i * cols + j;
+                let (ro, rd, tmin) = (rays.origin(r), rays.dir(r), rays.tmin[r]);
+                n.rays_reproduced += 1;
+                n.tri_tests += ids.len() as u64;
+                if let Some(c) = cost.as_deref_mut() {
+                    c.add(r - start, 1, ids.len() as u64, ids.len() as u64);
+                }
+                match out {
+                    Out::Hits(_) => {
+                        for &p in ids {
+                            let pu = p as usize;
+                            if let Some(h) = intersect_triangle(
+                                ro,
+                                rd,
+                                soup.v0[pu],
+                                soup.v1[pu],
+                                soup.v2[pu],
+                                tmin,
+                                s.bt[k],
+                            ) {
+                                if closer(h.t, p, s.bt[k], s.bp[k]) {
+                                    (s.bt[k], s.bp[k], s.bu[k], s.bv[k]) = (h.t, p, h.u, h.v);
+                                }
+                            }
+                        }
+                    }
+                    Out::Occluded(o) => {
+                        let tmax = rays.tmax[r];
+                        for &p in ids {
+                            let pu = p as usize;
+                            if intersect_triangle(
+                                ro,
+                                rd,
+                                soup.v0[pu],
+                                soup.v1[pu],
+                                soup.v2[pu],
+                                tmin,
+                                tmax,
+                            )
+                            .is_some()
+                            {
+                                o[r - start] = true;
+                                s.done[i] |= 1 << j;
+                                *live -= 1;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Traces group `g` (rays of the chunk starting at `start`) into `out`.
 #[allow(clippy::too_many_arguments)]
 pub fn trace(
@@ -363,35 +545,8 @@ pub fn trace(
         (u.x, u.z)
     });
     s.g = gd;
-    // Each part's frame in the grid's: M = R·A, b = R·(t − o), in f64.
     let r64 = frame.map(|v| v.as_dvec3());
     let o64 = o.as_dvec3();
-    s.frames.clear();
-    for p in &tree.parts {
-        let a = [
-            p.xf.matrix3.x_axis,
-            p.xf.matrix3.y_axis,
-            p.xf.matrix3.z_axis,
-        ]
-        .map(|c| DVec3::from(Vec3::from(c)));
-        let t = DVec3::from(Vec3::from(p.xf.translation));
-        let m = r64.map(|row| DVec3::new(row.dot(a[0]), row.dot(a[1]), row.dot(a[2])).as_vec3());
-        let b = DVec3::new(
-            r64[0].dot(t - o64),
-            r64[1].dot(t - o64),
-            r64[2].dot(t - o64),
-        )
-        .as_vec3();
-        let scale = p.sigma * p.extent
-            + Vec3::from(p.xf.translation).abs().max_element()
-            + o.abs().max_element();
-        s.frames.push(Frame {
-            m,
-            b,
-            sigma: p.sigma,
-            e: 2.0 * SLACK * scale,
-        });
-    }
     let nr = g.rows * cols;
     let closest = matches!(out, Out::Hits(_));
     if closest {
@@ -411,137 +566,45 @@ pub fn trace(
     s.done[..g.rows].fill(0);
     let mut live = nr;
     let full = (mask(g.rows), mask(cols));
-    let root = {
-        let w = (tree.root_c.as_dvec3() - o64).as_vec3();
-        let c = Vec3::new(frame[0].dot(w), frame[1].dot(w), frame[2].dot(w));
-        let e =
-            2.0 * SLACK * (tree.root_c.abs().max_element() + tree.root_r + o.abs().max_element());
-        sphere(s, c, tree.root_r, e, full, cfg, n)
+    let w = Walk {
+        tree,
+        cfg,
+        soup,
+        rays,
+        g,
+        start,
     };
-    let Some(pm0) = root.filter(|_| !tree.parts.is_empty()) else {
-        return;
-    };
-    for (pi, part) in tree.parts.iter().enumerate() {
-        let f = s.frames[pi];
-        let Some(pm) = f.sphere(s, part.centre, part.radius, pm0, cfg, n) else {
+    // The part tree depth first (its root is the scene sphere), world spheres brought into the
+    // grid frame; a bottom node's parts each get their own frame. A fixed stack, deep enough for
+    // any binary tree over u32 parts.
+    let mut stack = [(0u32, full); MAX_DEPTH + 1];
+    let mut sp = usize::from(!tree.parts.is_empty());
+    'walk: while sp > 0 {
+        sp -= 1;
+        let (k, mk) = stack[sp];
+        let k = k as usize;
+        let (wc, wr) = (tree.pnode_c[k], tree.pnode_r[k]);
+        let d = (wc.as_dvec3() - o64).as_vec3();
+        let c = Vec3::new(frame[0].dot(d), frame[1].dot(d), frame[2].dot(d));
+        let e = 2.0 * SLACK * (wc.abs().max_element() + wr + o.abs().max_element());
+        let Some(km) = sphere(s, c, wr, e, mk, cfg, n) else {
             continue;
         };
-        let mut leaf = |l: usize,
-                        s: &mut Scratch,
-                        pm: (u64, u64),
-                        n: &mut Counts,
-                        out: &mut Out<'_, '_>,
-                        live: &mut usize| {
-            let Some((rm, cm)) = f.sphere(s, tree.leaf_c[l], tree.leaf_r[l], pm, cfg, n) else {
-                return;
-            };
-            let [t0, t1] = tree.leaf_tris[l];
-            let ids = &tree.tris[t0 as usize..t1 as usize];
-            let mut rbits = rm;
-            while rbits != 0 {
-                let a = rbits.trailing_zeros() as usize;
-                rbits &= rbits - 1;
-                let i = s.rows.order[a] as usize;
-                let mut cbits = cm;
-                while cbits != 0 {
-                    let b = cbits.trailing_zeros() as usize;
-                    cbits &= cbits - 1;
-                    let j = s.cols.order[b] as usize;
-                    if s.done[i] >> j & 1 == 1 {
-                        continue;
-                    }
-                    let r = g.ray(i, j);
-                    let k = i * cols + j;
-                    let (ro, rd, tmin) = (rays.origin(r), rays.dir(r), rays.tmin[r]);
-                    n.rays_reproduced += 1;
-                    n.tri_tests += ids.len() as u64;
-                    if let Some(c) = cost.as_deref_mut() {
-                        c.add(r - start, 1, ids.len() as u64, ids.len() as u64);
-                    }
-                    match out {
-                        Out::Hits(_) => {
-                            for &p in ids {
-                                let pu = p as usize;
-                                if let Some(h) = intersect_triangle(
-                                    ro,
-                                    rd,
-                                    soup.v0[pu],
-                                    soup.v1[pu],
-                                    soup.v2[pu],
-                                    tmin,
-                                    s.bt[k],
-                                ) {
-                                    if closer(h.t, p, s.bt[k], s.bp[k]) {
-                                        (s.bt[k], s.bp[k], s.bu[k], s.bv[k]) = (h.t, p, h.u, h.v);
-                                    }
-                                }
-                            }
-                        }
-                        Out::Occluded(o) => {
-                            let tmax = rays.tmax[r];
-                            for &p in ids {
-                                let pu = p as usize;
-                                if intersect_triangle(
-                                    ro,
-                                    rd,
-                                    soup.v0[pu],
-                                    soup.v1[pu],
-                                    soup.v2[pu],
-                                    tmin,
-                                    tmax,
-                                )
-                                .is_some()
-                                {
-                                    o[r - start] = true;
-                                    s.done[i] |= 1 << j;
-                                    *live -= 1;
-                                    break;
-                                }
-                            }
-                        }
+        match tree.pnode_kids[k] {
+            [NO_KID, _] => {
+                let [a, b] = tree.pnode_parts[k];
+                for &pi in &tree.part_order[a as usize..b as usize] {
+                    let part = &tree.parts[pi as usize];
+                    let f = Frame::of(part, &r64, o64, o);
+                    if w.part(part, &f, km, s, &mut out, cost.as_deref_mut(), n, &mut live) {
+                        break 'walk;
                     }
                 }
             }
-        };
-        if part.inner.is_empty() {
-            for l in part.leaves.clone() {
-                leaf(l as usize, s, pm, n, &mut out, &mut live);
-                if live == 0 {
-                    return;
-                }
-            }
-        } else {
-            // Inner spheres depth first, each tested by the planes its parent hit (flat: every
-            // top sphere is a bottom one); a fixed stack, deep enough for any binary tree over
-            // u32 leaves.
-            let mut stack = [(0u32, (0u64, 0u64)); MAX_DEPTH + 1];
-            for top in tree.top(part) {
-                stack[0] = (top, pm);
-                let mut sp = 1;
-                while sp > 0 {
-                    sp -= 1;
-                    let (k, mk) = stack[sp];
-                    let k = k as usize;
-                    let Some(km) = f.sphere(s, tree.inner_c[k], tree.inner_r[k], mk, cfg, n) else {
-                        continue;
-                    };
-                    match tree.inner_kids[k] {
-                        [NO_KID, _] => {
-                            let [l0, l1] = tree.inner_leaves[k];
-                            for l in l0..l1 {
-                                leaf(l as usize, s, km, n, &mut out, &mut live);
-                            }
-                            if live == 0 {
-                                return;
-                            }
-                        }
-                        [a, b] => {
-                            stack[sp] = (b, km);
-                            stack[sp + 1] = (a, km);
-                            sp += 2;
-                        }
-                    }
-                }
+            [x, y] => {
+                stack[sp] = (y, km);
+                stack[sp + 1] = (x, km);
+                sp += 2;
             }
         }
     }

@@ -26,8 +26,8 @@
 //! slack (largest sine between a ray and its plane) widens every bound (see
 //! `geom::sphere_plane`), so the planes may only cull, and a reproduced ray (a hit row × a hit
 //! column) is tested against the leaf's triangles with the shared `geom::intersect_triangle`. The
-//! walk is scene sphere → part spheres → inner spheres → leaves; a child tests only the planes
-//! its parent hit (a ray meeting a child's triangles passes through the parent).
+//! walk is scene sphere → part tree → part spheres → inner spheres → leaves; a child tests only
+//! the planes its parent hit (a ray meeting a child's triangles passes through the parent).
 //! `culling` (§3.1.2): the outermost of the parent's hit planes are tested first and the exact
 //! circle/double-wedge test culls the sphere (Table 1's cases 5–10). `tree` (§3.1.3): the
 //! remaining planes are visited in implicit binary-tree order (centre first), a missed plane
@@ -46,6 +46,9 @@
 //!   `tmin >= 0` and points ahead of the grid frame (`u.z > 1e-3`), a sphere wholly behind the
 //!   origin or wholly past every ray's end (`tmax·|d|·u.z`) is culled before any plane test,
 //!   with the frame's rounding margin (BENCHMARKS.md § RTRPS: 5.3× on the bunny's shadow grids);
+//! - a part tree (world-frame spheres over the parts, rebuilt at every update, see
+//!   `accel::spheres`) between the scene sphere and the parts: the paper's scenes have a few
+//!   parts, ours (`animate --motion spin-parts`) thousands, each of which every group tested;
 //! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
 //!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
 //! - §3.2's common-origin and aligned ray-plane triangle forms are not implemented: the exactness
@@ -260,6 +263,9 @@ crate::counters! {
         internal_tests,
         /// Spheres a group tested (scene, part, inner and leaf spheres).
         spheres_visited,
+        /// Part spheres tested (groups and random rays): the part tree keeps it below one
+        /// test per part and group.
+        part_tests,
         /// Spheres the wedge test culled before any inner plane was tested.
         spheres_culled,
         /// Spheres wholly behind the group's origin or beyond every ray's end (`depth_cull`).

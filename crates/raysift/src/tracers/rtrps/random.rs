@@ -1,6 +1,7 @@
-//! Random rays (§4.2, the baseline of Table 5): one ray at a time over the same sphere hierarchy,
-//! brought into each part's local frame once (world-to-local in f64 at update), then tested
-//! against the part's, inner and leaf spheres (`geom::sphere_plane::ray_sphere`), near spheres
+//! Random rays (§4.2, the baseline of Table 5): one ray at a time over the same sphere hierarchy:
+//! the part tree's world spheres first, then, for each part reached, the ray brought into the
+//! part's local frame once (world-to-local in f64 at update) and tested against the part's,
+//! inner and leaf spheres (`geom::sphere_plane::ray_sphere`), near spheres
 //! cut by the closest hit so far. A part whose transform cannot be inverted safely is walked
 //! without sphere culls (every triangle of it tested).
 
@@ -69,6 +70,7 @@ fn walk(
         *cost += 1;
         ray_sphere(lr.o, lr.d, lr.dd, lr.dl, c, r * lr.k + lr.e, tmin, tmax)
     };
+    n.part_tests += 1;
     if !test(p.centre, p.radius, tmax, n) {
         return Some(tmax);
     }
@@ -113,6 +115,55 @@ fn walk(
     Some(tmax)
 }
 
+/// Walks the part tree for the ray (world spheres, cut by the current `tmax`), calling
+/// `part(p, tmax)` on each part of a bottom node it meets; `part` returns the new `tmax`, or
+/// `None` to stop the whole walk; `tests` counts the node spheres tested. A direction whose
+/// squared length is not a normal f32 tests no node sphere (every part is visited).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn parts(
+    tree: &SphereTree,
+    o: Vec3,
+    d: Vec3,
+    tmin: f32,
+    mut tmax: f32,
+    tests: &mut u64,
+    mut part: impl FnMut(&Part, f32) -> Option<f32>,
+) -> Option<f32> {
+    let dd = d.length_squared();
+    let cull = dd.is_finite() && dd >= f32::MIN_POSITIVE;
+    let dl = dd.sqrt();
+    let om = o.abs().max_element();
+    let mut stack = [0u32; MAX_DEPTH + 1];
+    let mut sp = usize::from(!tree.parts.is_empty());
+    while sp > 0 {
+        sp -= 1;
+        let k = stack[sp] as usize;
+        if cull {
+            let (c, r) = (tree.pnode_c[k], tree.pnode_r[k]);
+            *tests += 1;
+            let e = 2.0 * SLACK * (c.abs().max_element() + r + om);
+            if !ray_sphere(o, d, dd, dl, c, r + e, tmin, tmax) {
+                continue;
+            }
+        }
+        match tree.pnode_kids[k] {
+            [NO_KID, _] => {
+                let [a, b] = tree.pnode_parts[k];
+                for &p in &tree.part_order[a as usize..b as usize] {
+                    tmax = part(&tree.parts[p as usize], tmax)?;
+                }
+            }
+            [x, y] => {
+                stack[sp] = y;
+                stack[sp + 1] = x;
+                sp += 2;
+            }
+        }
+    }
+    Some(tmax)
+}
+
 /// Closest hit of ray `i` (window slot `k`) into `out`.
 #[allow(clippy::too_many_arguments)]
 pub fn closest(
@@ -129,8 +180,9 @@ pub fn closest(
     let (mut bt, mut bp, mut bu, mut bv) = (rays.tmax[i], MISS, 0.0, 0.0);
     n.random_rays += 1;
     let (mut tests, mut tris, mut leaves) = (0u64, 0u64, 0u64);
-    for p in &tree.parts {
-        let _ = walk(tree, p, o, d, tmin, bt, n, &mut tests, |l, _| {
+    let mut node_tests = 0;
+    let _ = parts(tree, o, d, tmin, bt, &mut node_tests, |p, tmax| {
+        walk(tree, p, o, d, tmin, tmax, n, &mut tests, |l, _| {
             let [t0, t1] = tree.leaf_tris[l];
             leaves += 1;
             for &q in &tree.tris[t0 as usize..t1 as usize] {
@@ -145,8 +197,10 @@ pub fn closest(
                 }
             }
             Some(bt)
-        });
-    }
+        })
+    });
+    n.ray_sphere += node_tests;
+    tests += node_tests;
     n.tri_tests += tris;
     if bp != MISS {
         (out.t[k], out.prim[k], out.u[k], out.v[k]) = (bt, bp, bu, bv);
@@ -170,9 +224,9 @@ pub fn any(
     let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
     n.random_rays += 1;
     let (mut tests, mut tris, mut leaves) = (0u64, 0u64, 0u64);
-    let mut hit = false;
-    for p in &tree.parts {
-        let r = walk(tree, p, o, d, tmin, tmax, n, &mut tests, |l, tmax| {
+    let mut node_tests = 0;
+    let hit = parts(tree, o, d, tmin, tmax, &mut node_tests, |p, tmax| {
+        walk(tree, p, o, d, tmin, tmax, n, &mut tests, |l, tmax| {
             let [t0, t1] = tree.leaf_tris[l];
             leaves += 1;
             for &q in &tree.tris[t0 as usize..t1 as usize] {
@@ -185,12 +239,11 @@ pub fn any(
                 }
             }
             Some(tmax)
-        });
-        if r.is_none() {
-            hit = true;
-            break;
-        }
-    }
+        })
+    })
+    .is_none();
+    n.ray_sphere += node_tests;
+    tests += node_tests;
     n.tri_tests += tris;
     if let Some(c) = cost {
         c.add(k, leaves, tests + tris, tris);
