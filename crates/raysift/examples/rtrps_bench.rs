@@ -9,7 +9,9 @@
 //! `... -- table5 [scene] [origins]`: the same shadow grids timed: rtrps (planes) vs its random-ray
 //! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3.
 //! `... -- table6 [scene] [frames]`: first hit at 1024²: update + trace per frame under
-//! `spin-parts`, rtrps vs `bvh` rebuild and `bvh update=refit`.
+//! `spin-parts` (a `.glb` scene plays its own animation), rtrps vs `bvh` rebuild, `bvh
+//! update=refit`, `dacrt` and, when `bench/target/release/embree-peer` is built, Embree's low
+//! and medium builds with 16-ray packets on the same rays.
 //! `[scene]` is a path or a procedural spec; default the bunny from shared/scenes.
 
 use glam::Vec3;
@@ -232,37 +234,181 @@ fn table5(spec: &str, origins: usize) {
     }
 }
 
+/// The Embree peer (`bench/target/release/embree-peer`), when built.
+fn embree_peer() -> Option<std::path::PathBuf> {
+    ["../../bench", "bench", "/work/main/bench"]
+        .iter()
+        .map(|d| std::path::Path::new(d).join("target/release/embree-peer"))
+        .find(|p| p.is_file())
+}
+
+/// Writes the frame's world triangles as float32 (T, 9), the peer's input.
+fn write_tris(scene: &Scene, path: &std::path::Path) {
+    let t = scene.triangles();
+    raysift::output::write_atomic(path, |w| {
+        use npyz::WriterBuilder;
+        let mut o = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[t.len() as u64, 9])
+            .writer(w)
+            .begin_nd()?;
+        for i in 0..t.len() {
+            for v in t.get(i) {
+                o.extend(v.to_array())?;
+            }
+        }
+        o.finish()
+    })
+    .expect("write tris.npy");
+}
+
+/// Embree's build + trace of `rays` (16-ray packets over 4×4 tiles of the image) on the frame
+/// in `dir`: (prepare ms, trace ms, rays whose primitive equals `want`'s).
+fn embree_frame(
+    peer: &std::path::Path,
+    dir: &std::path::Path,
+    quality: &str,
+    size: u32,
+    want: &raysift::HitBatch,
+) -> (f64, f64, usize) {
+    let threads = rayon::current_num_threads().to_string();
+    let hits = dir.join("hits.npy");
+    let out = std::process::Command::new(peer)
+        .args(["--tris", &dir.join("tris.npy").to_string_lossy()])
+        .args(["--rays", &dir.join("rays.npy").to_string_lossy()])
+        .args(["--out", &hits.to_string_lossy()])
+        .args([
+            "--quality",
+            quality,
+            "--packet",
+            "16",
+            "--threads",
+            &threads,
+        ])
+        .args(["--tile", &format!("{size},{size}")])
+        .output()
+        .expect("run embree-peer");
+    assert!(
+        out.status.success(),
+        "embree-peer: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).expect("peer JSON");
+    let h = raysift::rays::npy::read_hits(&hits).expect("peer hits");
+    let same = (0..want.len())
+        .filter(|&i| h.prim[i] == want.prim[i])
+        .count();
+    (
+        j["prepare_ms"].as_f64().unwrap(),
+        j["trace_ms"].as_f64().unwrap(),
+        same,
+    )
+}
+
 fn table6(spec: &str, frames: u32) {
-    let scene = open(spec);
-    let mut anim = Animation::new(&scene, Motion::SpinParts).unwrap();
-    let cam = Camera::framing(&scene.bounds().union(scene.bounds()), 45.0, 1.0).rays(1024, 1024);
+    let (scene, mut anim, motion) = if spec.ends_with(".glb") || spec.ends_with(".gltf") {
+        let path = [
+            "../shared/scenes",
+            "../../shared/scenes",
+            "/work/shared/scenes",
+        ]
+        .iter()
+        .map(|d| std::path::Path::new(d).join(spec))
+        .find(|p| p.exists())
+        .expect("glTF scene under shared/scenes");
+        let (scene, playback) = raysift::scene::io::gltf_anim::load_animated(&path).unwrap();
+        let anim = Animation::from_playback(scene.clone(), playback.expect("an animation"));
+        (scene, anim, "its glTF animation")
+    } else {
+        let scene = open(spec);
+        let anim = Animation::new(&scene, Motion::SpinParts).unwrap();
+        (scene, anim, "spin-parts")
+    };
+    let size = 1024;
+    let cam = Camera::framing(&scene.bounds(), 45.0, 1.0).rays(size, size);
     let names: Vec<Contender> = vec![
         ("rtrps", "rtrps", vec![]),
         ("bvh rebuild", "bvh", vec![]),
         ("bvh refit", "bvh", opts(&[("update", "refit")])),
+        ("dacrt", "dacrt", vec![]),
     ];
     let mut live: Vec<_> = names
         .iter()
         .map(|(_, n, o)| tracers::create(n, o).unwrap())
         .collect();
-    let mut upd = vec![Vec::new(); live.len()];
-    let mut tr = vec![Vec::new(); live.len()];
+    let peer = embree_peer();
+    let qualities = ["low", "medium"];
+    let rows = live.len() + if peer.is_some() { qualities.len() } else { 0 };
+    let mut upd = vec![Vec::new(); rows];
+    let mut tr = vec![Vec::new(); rows];
+    let mut work = String::new();
+    let mut agree = (0usize, 0usize);
+    let dir = tempfile::tempdir().unwrap();
+    let mut flat = cam.clone();
+    flat.layout = RayLayout::Unknown;
+    raysift::rays::npy::write_rays(dir.path().join("rays.npy"), &flat).unwrap();
+    let mut meshes = 0;
     for f in 0..frames {
         let s = anim.at(anim.frame_time(f, frames)).unwrap();
+        meshes = s.meshes().len();
+        let mut first: Option<raysift::HitBatch> = None;
         for (k, t) in live.iter_mut().enumerate() {
             let st = t.prepare_timed(s).unwrap();
-            let (_, ts) = t.intersect_timed(s, &cam).unwrap();
+            let (h, ts) = t.intersect_timed(s, &cam).unwrap();
+            match &first {
+                None => first = Some(h),
+                Some(h0) => assert!(*h0 == h, "{} disagrees with rtrps", names[k].0),
+            }
             if f > 0 {
                 upd[k].push(st.prepare_ms);
                 tr[k].push(ts.trace_ms);
             }
+            if k == 0 {
+                let b: Vec<_> = st.built.iter().collect();
+                let w: Vec<_> = ts.work.iter().collect();
+                work = format!("{b:?} {w:?}");
+            }
+        }
+        if let Some(peer) = &peer {
+            write_tris(s, &dir.path().join("tris.npy"));
+            for (q, quality) in qualities.iter().enumerate() {
+                let want = first.as_ref().unwrap();
+                let (p, t, same) = embree_frame(peer, dir.path(), quality, size, want);
+                if f > 0 {
+                    upd[live.len() + q].push(p);
+                    tr[live.len() + q].push(t);
+                    agree = (agree.0 + same, agree.1 + want.len());
+                }
+            }
         }
     }
-    println!("scene {spec} (spin-parts, {} meshes, {} triangles), 1024x1024 first hit, {} frames after the first", scene.meshes().len(), scene.len(), frames - 1);
+    println!("rtrps, last frame: {work}");
+    println!(
+        "scene {spec} ({motion}, {} meshes, {} triangles), {size}x{size} first hit, {} threads, {} frames after the first (medians)",
+        meshes,
+        scene.len(),
+        rayon::current_num_threads(),
+        frames - 1
+    );
+    match &peer {
+        Some(_) => println!(
+            "Embree 16-ray packets over 4x4 tiles: primitive ids equal raysift's on {} of {} rays",
+            agree.0, agree.1
+        ),
+        None => println!("Embree not run: bench/target/release/embree-peer is not built"),
+    }
     println!("| tracer | update ms | trace ms | total ms | total / rtrps |");
     println!("|---|---|---|---|---|");
     let tot = |k: usize| median(upd[k].clone()) + median(tr[k].clone());
-    for (k, (name, _, _)) in names.iter().enumerate() {
+    let mut labels: Vec<String> = names.iter().map(|n| n.0.to_string()).collect();
+    if peer.is_some() {
+        labels.extend(
+            qualities
+                .iter()
+                .map(|q| format!("Embree {q} build, 16-ray packets")),
+        );
+    }
+    for (k, name) in labels.iter().enumerate() {
         println!(
             "| {name} | {:.2} | {:.1} | {:.1} | {:.2} |",
             median(upd[k].clone()),
