@@ -8,6 +8,8 @@
 //! hemisphere bounce grids from camera hits.
 //! `... -- table5 [scene] [origins]`: the same shadow grids timed: rtrps (planes) vs its random-ray
 //! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3.
+//! `... -- crossover [scene] [origins]`: shadow grids of side 1…32 from the same points: per ray,
+//! ray-planes against random rays and `bvh` (Fig. 10's question: from which group size).
 //! `... -- table6 [scene] [frames]`: first hit at 1024²: update + trace per frame under
 //! `spin-parts` (a `.glb` scene plays its own animation), rtrps vs `bvh` rebuild, `bvh
 //! update=refit`, `dacrt` and, when `bench/target/release/embree-peer` is built, Embree's low
@@ -51,6 +53,11 @@ fn opts(s: &[(&str, &str)]) -> Vec<(String, String)> {
 /// Camera hits at 256² and, from every `step`-th, a 16×16 shadow grid towards a square light
 /// above the scene and an 8×8 cosine hemisphere grid.
 fn groups(scene: &Scene, origins: usize) -> (RayBatch, RayBatch) {
+    shadow_and_bounce(scene, origins, 16)
+}
+
+/// [`groups`] with `side`×`side` shadow grids over the same light square.
+fn shadow_and_bounce(scene: &Scene, origins: usize, side: usize) -> (RayBatch, RayBatch) {
     let b = scene.bounds();
     let cam = Camera::framing(&b, 45.0, 1.0).rays(256, 256);
     let mut naive = tracers::create("bvh", &[]).unwrap();
@@ -65,13 +72,14 @@ fn groups(scene: &Scene, origins: usize) -> (RayBatch, RayBatch) {
     for &i in hit.iter().step_by(step) {
         let (p, n) = generate::hit_frame(scene, &cam, &hits, i);
         let o = p + n * eps;
-        for r in 0..16 {
-            for c in 0..16 {
+        let (k, mid) = (side as f32, (side as f32 - 1.0) / 2.0);
+        for r in 0..side {
+            for c in 0..side {
                 let y = centre
                     + Vec3::new(
-                        (c as f32 - 7.5) / 16.0 * 0.3 * e.x,
+                        (c as f32 - mid) / k * 0.3 * e.x,
                         0.0,
-                        (r as f32 - 7.5) / 16.0 * 0.3 * e.z,
+                        (r as f32 - mid) / k * 0.3 * e.z,
                     );
                 sh.push(Ray {
                     origin: o,
@@ -92,7 +100,7 @@ fn groups(scene: &Scene, origins: usize) -> (RayBatch, RayBatch) {
         }
     }
     let mut sh = RayBatch::from_rays(sh);
-    sh.layout = RayLayout::OriginGrids { side: 16 };
+    sh.layout = RayLayout::OriginGrids { side: side as u32 };
     let mut bo = RayBatch::from_rays(bo);
     bo.layout = RayLayout::OriginGrids { side: 8 };
     (sh, bo)
@@ -137,13 +145,28 @@ fn fig11(spec: &str, origins: usize, shadow_only: bool) {
     for (what, rays, occl) in sets.into_iter().take(if shadow_only { 1 } else { 2 }) {
         for centre in ["box", "mean"] {
             let mut base = 0;
-            for (name, c, t, lv, dc) in [
-                ("all planes", "false", "false", "flat", "false"),
-                ("culling", "true", "false", "flat", "false"),
-                ("tree", "false", "true", "flat", "false"),
-                ("culling+tree", "true", "true", "flat", "false"),
-                ("+ binary levels", "true", "true", "binary", "false"),
-                ("+ depth cull (default)", "true", "true", "binary", "true"),
+            for (name, c, t, lv, dc, rc) in [
+                ("all planes", "false", "false", "flat", "false", "false"),
+                ("culling", "true", "false", "flat", "false", "false"),
+                ("tree", "false", "true", "flat", "false", "false"),
+                ("culling+tree", "true", "true", "flat", "false", "false"),
+                (
+                    "+ binary levels",
+                    "true",
+                    "true",
+                    "binary",
+                    "false",
+                    "false",
+                ),
+                ("+ depth cull", "true", "true", "binary", "true", "false"),
+                (
+                    "+ ray check (default)",
+                    "true",
+                    "true",
+                    "binary",
+                    "true",
+                    "true",
+                ),
             ] {
                 let o = [
                     ("culling", c),
@@ -151,6 +174,7 @@ fn fig11(spec: &str, origins: usize, shadow_only: bool) {
                     ("centre", centre),
                     ("levels", lv),
                     ("depth_cull", dc),
+                    ("ray_check", rc),
                 ];
                 let mut tr = tracers::create("rtrps", &opts(&o)).unwrap();
                 tr.prepare(&scene).unwrap();
@@ -183,14 +207,21 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn table5(spec: &str, origins: usize) {
+/// Table 5 form on the shadow grids (occlusion), or with `bounce` on the 8×8 cosine hemisphere
+/// grids (closest hits).
+fn table5(spec: &str, origins: usize, bounce: bool) {
     let scene = open(spec);
-    let (sh, _) = groups(&scene, origins);
+    let (sh, bo) = groups(&scene, origins);
+    let (sh, what, side) = if bounce {
+        (bo, "bounce", 8)
+    } else {
+        (sh, "shadow", 16)
+    };
     println!(
-        "scene {spec} ({} triangles): {} shadow rays in {} 16x16 grids, {} threads",
+        "scene {spec} ({} triangles): {} {what} rays in {} {side}x{side} grids, {} threads",
         scene.len(),
         sh.len(),
-        sh.len() / 256,
+        sh.len() / (side * side),
         rayon::current_num_threads()
     );
     let contenders: Vec<Contender> = vec![
@@ -199,6 +230,11 @@ fn table5(spec: &str, origins: usize) {
             "rtrps flat, no depth cull",
             "rtrps",
             opts(&[("levels", "flat"), ("depth_cull", "false")]),
+        ),
+        (
+            "rtrps, no ray check",
+            "rtrps",
+            opts(&[("ray_check", "false")]),
         ),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
@@ -217,11 +253,17 @@ fn table5(spec: &str, origins: usize) {
     for _ in 0..3 {
         for (k, t) in live.iter().enumerate() {
             let t0 = Instant::now();
-            let (occ, _) = t.occluded_timed(&scene, &sh).unwrap();
+            let ans = if bounce {
+                let (h, _) = t.intersect_timed(&scene, &sh).unwrap();
+                (h.t, h.prim)
+            } else {
+                let (occ, _) = t.occluded_timed(&scene, &sh).unwrap();
+                (Vec::new(), occ.into_iter().map(u32::from).collect())
+            };
             times[k].push(t0.elapsed().as_secs_f64() * 1e3);
             match &want {
-                None => want = Some(occ),
-                Some(w) => assert_eq!(w, &occ, "{} disagrees", contenders[k].0),
+                None => want = Some(ans),
+                Some(w) => assert!(*w == ans, "{} disagrees", contenders[k].0),
             }
         }
     }
@@ -328,6 +370,11 @@ fn table6(spec: &str, frames: u32) {
     let cam = Camera::framing(&scene.bounds(), 45.0, 1.0).rays(size, size);
     let names: Vec<Contender> = vec![
         ("rtrps", "rtrps", vec![]),
+        (
+            "rtrps, no ray check",
+            "rtrps",
+            opts(&[("ray_check", "false")]),
+        ),
         ("bvh rebuild", "bvh", vec![]),
         ("bvh refit", "bvh", opts(&[("update", "refit")])),
         ("dacrt", "dacrt", vec![]),
@@ -419,6 +466,67 @@ fn table6(spec: &str, frames: u32) {
     }
 }
 
+/// Fig. 10 form: shadow grids of side 1…32 from the same surface points to the same light
+/// square; per ray, time and work of ray-planes, of random rays on the same hierarchy, and of
+/// `bvh`: where ray-planes start to pay.
+fn crossover(spec: &str, origins: usize) {
+    let scene = open(spec);
+    let contenders: Vec<Contender> = vec![
+        ("rtrps", "rtrps", vec![]),
+        ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
+        ("bvh", "bvh", vec![]),
+    ];
+    let mut live: Vec<_> = contenders
+        .iter()
+        .map(|(_, n, o)| tracers::create(n, o).unwrap())
+        .collect();
+    for t in live.iter_mut() {
+        t.prepare(&scene).unwrap();
+    }
+    println!(
+        "scene {spec} ({} triangles), shadow grids from {origins} surface points, occlusion, {} threads, medians of 3 alternating rounds",
+        scene.len(),
+        rayon::current_num_threads()
+    );
+    println!("| side | rays | planes ns/ray | random ns/ray | bvh ns/ray | planes / random | plane tests/ray | spheres/ray (planes) | tri tests/ray (planes) | sphere tests/ray (random) | tri tests/ray (random) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for side in [1, 2, 4, 8, 16, 32] {
+        let (sh, _) = shadow_and_bounce(&scene, origins, side);
+        let mut times = vec![Vec::new(); live.len()];
+        let mut work = Vec::new();
+        let mut want = None;
+        for round in 0..3 {
+            for (k, t) in live.iter().enumerate() {
+                let (occ, st) = t.occluded_timed(&scene, &sh).unwrap();
+                times[k].push(st.trace_ms);
+                if round == 0 {
+                    work.push(st.work);
+                }
+                match &want {
+                    None => want = Some(occ),
+                    Some(w) => assert_eq!(w, &occ, "{} disagrees", contenders[k].0),
+                }
+            }
+        }
+        let n = sh.len() as f64;
+        let ns = |k: usize| median(times[k].clone()) * 1e6 / n;
+        let per = |k: usize, c: &str| work[k].get(c) as f64 / n;
+        println!(
+            "| {side} | {} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} |",
+            sh.len(),
+            ns(0),
+            ns(1),
+            ns(2),
+            ns(0) / ns(1),
+            per(0, "outline_tests") + per(0, "internal_tests"),
+            per(0, "spheres_visited"),
+            per(0, "tri_tests"),
+            per(1, "ray_sphere"),
+            per(1, "tri_tests"),
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let what = args.first().map(String::as_str).unwrap_or("table3");
@@ -427,8 +535,9 @@ fn main() {
     match what {
         "table3" => table3(),
         "fig11" => fig11(spec, n, args.get(3).is_some_and(|a| a == "shadow")),
-        "table5" => table5(spec, n),
+        "table5" => table5(spec, n, args.get(3).is_some_and(|a| a == "bounce")),
         "table6" => table6(spec, n.min(50) as u32),
-        _ => eprintln!("usage: rtrps_bench table3 | fig11 [scene] [origins] [shadow] | table5 [scene] [origins] | table6 [scene] [frames]"),
+        "crossover" => crossover(spec, n),
+        _ => eprintln!("usage: rtrps_bench table3 | fig11 [scene] [origins] [shadow] | table5 [scene] [origins] [bounce] | table6 [scene] [frames]"),
     }
 }

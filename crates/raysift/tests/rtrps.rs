@@ -198,8 +198,8 @@ fn depth_cull_keeps_hits_at_both_ends_and_behind() {
     }
 }
 
-/// The depth cull and the binary levels remove work without changing answers: grids from
-/// inside an icosphere see half of it behind their origin.
+/// The depth cull, the binary levels and the per-ray check remove work without changing
+/// answers: grids from inside an icosphere see half of it behind their origin.
 #[test]
 fn depth_cull_and_binary_levels_remove_work() {
     let scene = procedural::icosphere(3000);
@@ -211,6 +211,16 @@ fn depth_cull_and_binary_levels_remove_work() {
     let (h_off, off) = run(&[("depth_cull", "false")]);
     let (h_on, on) = run(&[]);
     let (h_flat, flat) = run(&[("levels", "flat")]);
+    let (h_nocheck, nocheck) = run(&[("ray_check", "false")]);
+    // The per-ray check drops reproduced rays that miss the leaf sphere before their triangles.
+    assert_eq!(nocheck.get("ray_culled"), 0);
+    assert!(on.get("ray_culled") > 0, "{on:?}");
+    assert_eq!(
+        on.get("tri_tests") + on.get("ray_culled"),
+        nocheck.get("tri_tests"),
+        "{on:?} vs {nocheck:?}"
+    );
+    assert_eq!(raysift::testkit::first_difference(&h_nocheck, &h_on), None);
     assert_eq!(off.get("depth_culled"), 0);
     assert!(on.get("depth_culled") > 0, "{on:?}");
     assert!(
@@ -224,6 +234,52 @@ fn depth_cull_and_binary_levels_remove_work() {
     assert_eq!(raysift::testkit::first_difference(&h_off, &h_on), None);
     assert_eq!(raysift::testkit::first_difference(&h_off, &h_flat), None);
     check(&scene, &rays);
+}
+
+/// Cosine hemisphere grids whose rows are azimuths and whose columns are radii (the renderers'
+/// bounce grids): each row's last ray minus its first cancels against the opposite row's, so
+/// the rows' mean "along" direction is (almost) the grids' mean direction; the grid frame must
+/// still come out orthonormal (it did not: a skewed frame lost hits on the bunny's bounce
+/// grids). Arbitrary normals, origins inside an icosphere and near a soup.
+#[test]
+fn hemisphere_grids_whose_rows_cancel() {
+    let mut meshes = vec![procedural::icosphere(2000).meshes()[0].clone()];
+    let mut soup = procedural::soup(300, 5).meshes()[0].clone();
+    soup.transform = Affine3A::from_scale(Vec3::splat(0.4));
+    meshes.push(soup);
+    let scene = Scene::from_meshes("sphere and soup", meshes).unwrap();
+    let side = 8;
+    let mut rays = Vec::new();
+    for k in 0..40u32 {
+        let f = k as f32;
+        let n = Vec3::new((f * 1.7).sin(), (f * 2.3).cos(), (f * 0.9).sin() + 0.1).normalize();
+        let o = Vec3::new((f * 0.37).sin(), (f * 0.53).cos(), (f * 0.71).sin()) * 0.45;
+        for c in 0..side * side {
+            let (a, b) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
+            rays.push(Ray {
+                origin: o,
+                dir: generate::cosine_direction(n, a / side as f32, b / side as f32),
+                tmin: 0.0,
+                tmax: f32::INFINITY,
+            });
+        }
+    }
+    let mut batch = RayBatch::from_rays(rays);
+    batch.layout = RayLayout::OriginGrids { side: side as u32 };
+    check(&scene, &batch);
+    // The defaults send such loose grids to random rays (`max_slack`): as ray-planes too.
+    let (_, loose) = closest_with(&scene, &batch, &[]);
+    assert_eq!(loose.get("slack_groups"), 40, "{loose:?}");
+    let entry = tracers::entry("rtrps").unwrap();
+    let want = Oracle::new(&scene, &batch);
+    let mut sc = scene.clone();
+    for extra in [&[][..], &[("levels", "flat"), ("ray_check", "false")][..]] {
+        let mut opts = vec![("max_slack".to_string(), "1".to_string())];
+        opts.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+        check_tracer(entry, &opts, &mut sc, &batch, &want).unwrap();
+    }
+    let (_, tight) = closest_with(&scene, &batch, &[("max_slack", "1")]);
+    assert_eq!((tight.get("groups"), tight.get("slack_groups")), (40, 0));
 }
 
 /// Hemisphere grids (a diffuse bounce) from surface points of the Cornell box, inside and out:
@@ -474,4 +530,11 @@ fn bad_options_are_errors() {
     assert!(tracers::create("rtrps", &[("leaf_size".into(), "0".into())]).is_err());
     assert!(tracers::create("rtrps", &[("packet".into(), "65".into())]).is_err());
     assert!(tracers::create("rtrps", &[("centre".into(), "middle".into())]).is_err());
+    for bad in ["1.5", "-0.1", "NaN"] {
+        let e = tracers::create("rtrps", &[("max_slack".into(), bad.into())]);
+        assert!(
+            e.is_err_and(|e| e.to_string().contains("max_slack")),
+            "{bad}"
+        );
+    }
 }

@@ -170,7 +170,8 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
         // One column: the rows run along y; x is then across them.
         along = (s.g[n - 1] - s.g[0]).cross(sum);
     }
-    // Any frame is correct (the fans' slack measures the fit); a good one makes thin planes.
+    // Any orthonormal frame is correct (the fans' slack measures the fit); a good one makes
+    // thin planes.
     let vz = {
         let z = sum.normalize_or_zero();
         if z == Vec3::ZERO || !z.is_finite() {
@@ -179,12 +180,23 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
             z
         }
     };
+    // The frame must be orthonormal: sphere distances and the fans' slack are measured in it.
+    // x is `along` made orthogonal to z by two Gram–Schmidt passes; when `along` is (nearly)
+    // parallel to z, what is left of it is rounding noise that one pass leaves far from
+    // orthogonal (hemisphere grids whose rows are azimuths: 0.70 from z measured, which lost
+    // hits), so x then comes from z alone.
     let vx = {
-        let x = (along - vz * vz.dot(along)).normalize_or_zero();
-        if x == Vec3::ZERO || !x.is_finite() {
-            vz.any_orthonormal_vector()
-        } else {
+        let orth = |a: Vec3| a - vz * vz.dot(a);
+        let o1 = orth(along);
+        let x = orth(o1).normalize_or_zero();
+        if x.is_finite()
+            && x != Vec3::ZERO
+            && o1.length() > 1e-3 * along.length()
+            && x.dot(vz).abs() <= 1e-6
+        {
             x
+        } else {
+            vz.any_orthonormal_vector()
         }
     };
     let vy = vz.cross(vx);
@@ -425,6 +437,16 @@ impl Walk<'_> {
         let Some((rm, cm)) = f.sphere(s, tree.leaf_c[l], tree.leaf_r[l], pm, self.cfg, n) else {
             return;
         };
+        // The per-ray check (`ray_check`): a reproduced ray whose line passes farther from the
+        // leaf's centre than its radius cannot report a hit there. In the grid frame every ray
+        // leaves the origin with unit direction `s.g[k]`; the frame is orthonormal to a few
+        // 1e-7 and the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5
+        // relative of the centre's distance and of the radius.
+        let check = self.cfg.ray_check.then(|| {
+            let c = f.apply(tree.leaf_c[l]);
+            let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
+            (c, r * r)
+        });
         let cols = g.cols;
         let [t0, t1] = tree.leaf_tris[l];
         let ids = &tree.tris[t0 as usize..t1 as usize];
@@ -443,8 +465,14 @@ impl Walk<'_> {
                 }
                 let r = g.ray(i, j);
                 let k = i * cols + j;
-                let (ro, rd, tmin) = (rays.origin(r), rays.dir(r), rays.tmin[r]);
                 n.rays_reproduced += 1;
+                if let Some((c, r2)) = check {
+                    if c.cross(s.g[k]).length_squared() > r2 {
+                        n.ray_culled += 1;
+                        continue;
+                    }
+                }
+                let (ro, rd, tmin) = (rays.origin(r), rays.dir(r), rays.tmin[r]);
                 n.tri_tests += ids.len() as u64;
                 if let Some(c) = cost.as_deref_mut() {
                     c.add(r - start, 1, ids.len() as u64, ids.len() as u64);
@@ -510,11 +538,11 @@ pub fn trace(
     mut cost: Option<&mut CostMut<'_>>,
     n: &mut Counts,
 ) {
-    let Some((o, frame)) = setup(rays, g, s) else {
+    let alone = |out: &mut Out<'_, '_>, cost: &mut Option<&mut CostMut<'_>>, n: &mut Counts| {
         for i in 0..g.rows {
             for j in 0..g.cols {
                 let r = g.ray(i, j);
-                match &mut out {
+                match out {
                     Out::Hits(h) => {
                         random::closest(tree, soup, rays, r, r - start, h, cost.as_deref_mut(), n)
                     }
@@ -525,16 +553,12 @@ pub fn trace(
                 }
             }
         }
+    };
+    let Some((o, frame)) = setup(rays, g, s) else {
+        alone(&mut out, &mut cost, n);
         return;
     };
-    n.groups += 1;
-    n.group_rays += (g.rows * g.cols) as u64;
     let cols = g.cols;
-    s.depth = if cfg.depth_cull {
-        depth_range(rays, g, &s.g)
-    } else {
-        None
-    };
     let gd = std::mem::take(&mut s.g);
     s.rows.fit(g.rows, cols, |i, j| {
         let u = gd[i * cols + j];
@@ -545,6 +569,20 @@ pub fn trace(
         (u.x, u.z)
     });
     s.g = gd;
+    if s.rows.slack.max(s.cols.slack) > cfg.max_slack {
+        // Rays far from their planes (hemisphere grids): every plane meets the spheres near the
+        // origin, and random rays are faster (BENCHMARKS.md § RTRPS, bounce grids).
+        n.slack_groups += 1;
+        alone(&mut out, &mut cost, n);
+        return;
+    }
+    n.groups += 1;
+    n.group_rays += (g.rows * g.cols) as u64;
+    s.depth = if cfg.depth_cull {
+        depth_range(rays, g, &s.g)
+    } else {
+        None
+    };
     let r64 = frame.map(|v| v.as_dvec3());
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;

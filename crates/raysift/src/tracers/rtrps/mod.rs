@@ -49,6 +49,13 @@
 //! - a part tree (world-frame spheres over the parts, rebuilt at every update, see
 //!   `accel::spheres`) between the scene sphere and the parts: the paper's scenes have a few
 //!   parts, ours (`animate --motion spin-parts`) thousands, each of which every group tested;
+//! - the per-ray check (`ray_check`): a hit row × a hit column is the bounding square of a
+//!   leaf's footprint, so each reproduced ray is first tested against the leaf's sphere (its
+//!   unit direction in the grid frame against the centre, with the frame's margins), and only
+//!   rays that pass go to the triangle test;
+//! - groups whose fitted planes hold their rays only loosely (`max_slack`, the largest sine
+//!   between a ray and its plane; hemisphere grids) are traced as random rays: every plane
+//!   then meets every sphere near the origin (measured in BENCHMARKS.md § RTRPS);
 //! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
 //!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
 //! - §3.2's common-origin and aligned ray-plane triangle forms are not implemented: the exactness
@@ -98,7 +105,14 @@ pub struct Config {
     /// Inner spheres: `binary` (a binary tree over each part's leaves, bottom spheres of at most
     /// `cluster` leaves) or `flat` (one level of `cluster`-leaf spheres). Default `binary`.
     pub levels: Levels,
-    /// Tile side for pinhole images (1..=64). Default 8.
+    /// Test each reproduced ray against the leaf's sphere before its triangles (ours: a hit row
+    /// × a hit column is the bounding square of the sphere's footprint). Default true.
+    pub ray_check: bool,
+    /// Groups whose fitted row or column planes hold their rays only to a sine above this are
+    /// traced as random rays (ours; 0..=1, 1: never). Default 0.2 (BENCHMARKS.md § RTRPS:
+    /// shadow grids and camera tiles stay far below it, hemisphere grids are above).
+    pub max_slack: f32,
+    /// Tile side for pinhole images (1..=64). Default 16.
     pub packet: usize,
     /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
     /// its layout (tests). Default 0.
@@ -127,6 +141,8 @@ impl Default for Config {
             centre: Centre::Box,
             levels: Levels::Binary,
             depth_cull: true,
+            ray_check: true,
+            max_slack: 0.2,
             packet: 16,
             grid_side: 0,
         }
@@ -144,6 +160,12 @@ impl Config {
         }
         if !(1..=64).contains(&self.packet) {
             return bad(&format!("packet must be in 1..=64, got {}", self.packet));
+        }
+        if !(0.0..=1.0).contains(&self.max_slack) {
+            return bad(&format!(
+                "max_slack must be in 0..=1, got {}",
+                self.max_slack
+            ));
         }
         if self.grid_side > 64 {
             return bad(&format!(
@@ -199,6 +221,14 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "inner spheres: binary (a tree over each part's leaves) or flat (one level)",
     },
     OptionDoc {
+        key: "ray_check",
+        doc: "test each reproduced ray against the leaf sphere before its triangles (ours)",
+    },
+    OptionDoc {
+        key: "max_slack",
+        doc: "groups whose rays lie farther from their planes (sine) go as random rays (0..=1)",
+    },
+    OptionDoc {
         key: "packet",
         doc: "tile side for pinhole images (1..=64)",
     },
@@ -220,6 +250,8 @@ pub const PRESETS: &[Preset] = &[
             ("culling", "false"),
             ("tree", "false"),
             ("depth_cull", "false"),
+            ("ray_check", "false"),
+            ("max_slack", "1"),
         ],
     },
     Preset {
@@ -253,6 +285,8 @@ crate::counters! {
     pub struct Counts {
         /// Ray groups traced as ray-planes.
         groups,
+        /// Groups traced as random rays because their planes' slack exceeds `max_slack`.
+        slack_groups,
         /// Rays in those groups.
         group_rays,
         /// Rays traced alone (random rays).
@@ -272,6 +306,8 @@ crate::counters! {
         depth_culled,
         /// Rays reproduced from a hit row and a hit column at a leaf.
         rays_reproduced,
+        /// Reproduced rays whose line misses the leaf sphere (`ray_check`): no triangle test.
+        ray_culled,
         /// Ray/sphere tests of random rays.
         ray_sphere,
         /// Ray/triangle tests (shared test).
