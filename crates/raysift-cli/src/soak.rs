@@ -1,6 +1,6 @@
 //! `raysift soak`: adversarial scenes and rays (coplanar grids, rays through shared edges and
 //! vertices, near-parallel rays, needle fans, duplicated triangles, huge and tiny scales, denormal
-//! and huge directions, grazing cameras) by the million, every tracer and preset against `naive`
+//! and huge directions, grazing cameras, ray groups from one origin) by the million, every tracer and preset against `naive`
 //! (`raysift::testkit::soak`). Each disagreement is printed with the files that reproduce it (the
 //! case's scene as OBJ, its rays as rays.npy, and the `raysift trace` command); each tracer's worst
 //! time against `naive` is reported. Exit code 1 on any disagreement or a time ratio above
@@ -28,7 +28,7 @@ pub struct SoakArgs {
     /// Tracers to check (comma-separated registry names); default every tracer but naive.
     #[arg(long, value_delimiter = ',')]
     tracers: Vec<String>,
-    /// Classes (comma-separated): vertex, grid, tilted, fan, duplicates, scale, directions, camera.
+    /// Classes (comma-separated): vertex, grid, tilted, fan, duplicates, scale, directions, camera, grids.
     #[arg(long, value_delimiter = ',')]
     classes: Vec<String>,
     /// Check each tracer's defaults only, not every preset of its registry entry.

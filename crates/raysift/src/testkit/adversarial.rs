@@ -11,6 +11,7 @@
 //! | `scale` | a mesh scaled by 1e6 or 1e-6, or moved 1e5 away | aimed at its vertices, camera rays |
 //! | `directions` | a soup | denormal-small and huge direction vectors, `t` up to 1e30 |
 //! | `camera` | a grid (tilted or not), a fan, or both | a pinhole camera (layout set: DACRT's packets, screen culling and tile leaves), often at grazing angles, sometimes jittered |
+//! | `grids` | a tilted grid and a soup | side×side groups from one origin each (layout `OriginGrids`: RTRPS's ray-planes): cosine hemisphere grids whose rows are azimuths (their rows cancel: the grid frame's hard case) or radii, shadow grids ending on a square light, from inside and around the scene |
 //!
 //! Every class mixes in some ordinary rays, and intervals `[tmin, tmax]` ending exactly at the
 //! hit distances. These are the inputs of the conformance suite's adversarial cases and of the
@@ -32,6 +33,7 @@ pub const CLASSES: &[&str] = &[
     "scale",
     "directions",
     "camera",
+    "grids",
 ];
 
 /// One generated case.
@@ -305,6 +307,73 @@ pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
                     (out.dx[i], out.dy[i], out.dz[i]) = (d.x, d.y, d.z);
                 }
             }
+            scene
+        }
+        "grids" => {
+            let k = rng.gen_range(3..20);
+            let (tris, _) = grid(k);
+            let xf = Affine3A::from_rotation_translation(
+                Quat::from_axis_angle(unit(&mut rng), rng.gen_range(0.0..1.5)),
+                unit(&mut rng) * rng.gen_range(0.0..3.0),
+            );
+            let mut tris: Vec<[Vec3; 3]> = tris
+                .iter()
+                .map(|t| t.map(|p| xf.transform_point3(p)))
+                .collect();
+            let soup = procedural::soup(150, seed);
+            for i in 0..soup.len() {
+                tris.push(soup.triangles().get(i).map(|p| p * k as f32 * 0.5));
+            }
+            let scene = soup_scene(&format!("grids:{seed}"), &tris);
+            let b = scene.bounds();
+            let (c, r) = (b.center(), b.extent().length().max(1e-3));
+            let side = rng
+                .gen_range(2..=16usize)
+                .min((rays as f32).sqrt() as usize)
+                .max(1);
+            let f = side as f32;
+            while out.len() + side * side <= rays {
+                let o = c + unit(&mut rng) * r * rng.gen_range(0.0..0.8);
+                let n = unit(&mut rng);
+                let light = c + unit(&mut rng) * r * 1.5;
+                let (lt, ls) = unit(&mut rng).any_orthonormal_pair();
+                let kind = rng.gen_range(0..3);
+                for i in 0..side {
+                    for j in 0..side {
+                        let (a, bb) = ((j as f32 + 0.5) / f, (i as f32 + 0.5) / f);
+                        let (dir, tmax) = match kind {
+                            0 => (
+                                crate::rays::generate::cosine_direction(n, a, bb),
+                                f32::INFINITY,
+                            ),
+                            1 => (
+                                crate::rays::generate::cosine_direction(n, bb, a),
+                                f32::INFINITY,
+                            ),
+                            _ => (
+                                light + (lt * (a - 0.5) + ls * (bb - 0.5)) * r * 0.3 - o,
+                                1.0,
+                            ),
+                        };
+                        out.push(Ray {
+                            origin: o,
+                            dir,
+                            tmin: 0.0,
+                            tmax,
+                        });
+                    }
+                }
+            }
+            // The rest (fewer than a group) as ordinary rays: trailing rays of a grid batch.
+            while out.len() < rays {
+                out.push(Ray {
+                    origin: c + unit(&mut rng) * r,
+                    dir: unit(&mut rng),
+                    tmin: 0.0,
+                    tmax: f32::INFINITY,
+                });
+            }
+            out.layout = crate::rays::RayLayout::OriginGrids { side: side as u32 };
             scene
         }
         _ => return None,
