@@ -158,3 +158,41 @@ fn rtrps_is_about_38_to_41_bytes_per_triangle() {
         );
     }
 }
+
+/// Per part, `rtrps` adds its record, its index in the part tree's order (4 B) and fewer than one
+/// part tree node (centre, radius, children, part range: 32 B; bottom nodes hold up to 4 parts);
+/// the total is exact and stays the same after rigid updates (the tree is rebuilt in place).
+#[test]
+fn rtrps_parts_cost_their_record_and_under_one_tree_node() {
+    use glam::{Affine3A, Vec3};
+    use raysift::scene::{Mesh, Scene};
+    let meshes: Vec<Mesh> = (0..300)
+        .map(|k| {
+            let mut m = procedural::icosphere(20 + k % 7).meshes()[0].clone();
+            m.transform =
+                Affine3A::from_translation(Vec3::new(k as f32 % 17.0, k as f32 / 17.0, 0.0));
+            m
+        })
+        .collect();
+    let mut scene = Scene::from_meshes("parts", meshes).unwrap();
+    let mut t = tracers::create("rtrps", &[]).unwrap();
+    let st = t.prepare(&scene).unwrap();
+    let g = |k: &str| st.built.get(k) as usize;
+    let (n, parts, inner, leaves) = (scene.len(), g("parts"), g("inner"), g("leaves"));
+    let nodes = g("spheres") - parts - inner - leaves;
+    assert!(
+        (parts / 4..parts).contains(&nodes),
+        "{nodes} part tree nodes for {parts} parts"
+    );
+    let part = std::mem::size_of::<raysift::accel::spheres::Part>();
+    let want = 28 * n + 32 * inner + (part + 4) * parts + 32 * nodes;
+    assert_eq!(t.bytes(), want);
+    for f in 1..4 {
+        for m in (0..300).step_by(7) {
+            let xf = Affine3A::from_rotation_z(f as f32) * scene.meshes()[m].transform;
+            scene.set_transform(m, xf).unwrap();
+        }
+        t.prepare(&scene).unwrap();
+        assert_eq!(t.bytes(), want, "frame {f}");
+    }
+}

@@ -335,6 +335,13 @@ impl SphereTree {
         t.leaf_tris.shrink_to_fit();
         t.tris.shrink_to_fit();
         t.parts.shrink_to_fit();
+        // The part tree has the same node count at every update (it depends on the parts'
+        // count only), so these capacities never change after the build.
+        t.pnode_c.shrink_to_fit();
+        t.pnode_r.shrink_to_fit();
+        t.pnode_kids.shrink_to_fit();
+        t.pnode_parts.shrink_to_fit();
+        t.part_order.shrink_to_fit();
         t
     }
 
