@@ -22,7 +22,7 @@ pub struct ExportArgs {
 pub fn run(a: &ExportArgs) -> Result<()> {
     let s = open_scene(&a.scene)?;
     if let Some(out) = &a.out {
-        write_triangles(&s, out)?;
+        raysift::rays::npy::write_triangles(out, &s)?;
     }
     if let Some(path) = &a.meshes {
         let report = MeshesReport {
@@ -42,24 +42,5 @@ pub fn run(a: &ExportArgs) -> Result<()> {
         }
         written?;
     }
-    Ok(())
-}
-
-fn write_triangles(s: &raysift::Scene, out: &Path) -> Result<()> {
-    let t = s.triangles();
-    raysift::output::write_atomic(out, |w| {
-        use npyz::WriterBuilder;
-        let mut o = npyz::WriteOptions::<f32>::new()
-            .default_dtype()
-            .shape(&[t.len() as u64, 9])
-            .writer(w)
-            .begin_nd()?;
-        for i in 0..t.len() {
-            for v in t.get(i) {
-                o.extend(v.to_array())?;
-            }
-        }
-        o.finish()
-    })?;
     Ok(())
 }

@@ -286,26 +286,6 @@ fn embree_peer() -> Option<std::path::PathBuf> {
         .find(|p| p.is_file())
 }
 
-/// Writes the frame's world triangles as float32 (T, 9), the peer's input.
-fn write_tris(scene: &Scene, path: &std::path::Path) {
-    let t = scene.triangles();
-    raysift::output::write_atomic(path, |w| {
-        use npyz::WriterBuilder;
-        let mut o = npyz::WriteOptions::<f32>::new()
-            .default_dtype()
-            .shape(&[t.len() as u64, 9])
-            .writer(w)
-            .begin_nd()?;
-        for i in 0..t.len() {
-            for v in t.get(i) {
-                o.extend(v.to_array())?;
-            }
-        }
-        o.finish()
-    })
-    .expect("write tris.npy");
-}
-
 /// Embree's build + trace of `rays` (16-ray packets over 4×4 tiles of the image) on the frame
 /// in `dir`: (prepare ms, trace ms, rays whose primitive equals `want`'s).
 fn embree_frame(
@@ -419,7 +399,7 @@ fn table6(spec: &str, frames: u32) {
             }
         }
         if let Some(peer) = &peer {
-            write_tris(s, &dir.path().join("tris.npy"));
+            raysift::rays::npy::write_triangles(dir.path().join("tris.npy"), s).unwrap();
             for (q, quality) in qualities.iter().enumerate() {
                 let want = first.as_ref().unwrap();
                 let (p, t, same) = embree_frame(peer, dir.path(), quality, size, want);

@@ -53,6 +53,20 @@ fn grids(origins: &[Vec3], axis: Vec3, side: usize, spread: f32) -> RayBatch {
     b
 }
 
+/// A side×side cosine hemisphere grid about `n` from `o` (rows: azimuths, columns: radii), as
+/// the renderers make bounce grids.
+fn cosine_grid(o: Vec3, n: Vec3, side: usize, rays: &mut Vec<Ray>) {
+    for c in 0..side * side {
+        let (a, b) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
+        rays.push(Ray {
+            origin: o,
+            dir: generate::cosine_direction(n, a / side as f32, b / side as f32),
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        });
+    }
+}
+
 /// Closest hits and work counters of `rtrps` with `opts` on `rays`.
 fn closest_with(
     scene: &Scene,
@@ -254,15 +268,7 @@ fn hemisphere_grids_whose_rows_cancel() {
         let f = k as f32;
         let n = Vec3::new((f * 1.7).sin(), (f * 2.3).cos(), (f * 0.9).sin() + 0.1).normalize();
         let o = Vec3::new((f * 0.37).sin(), (f * 0.53).cos(), (f * 0.71).sin()) * 0.45;
-        for c in 0..side * side {
-            let (a, b) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
-            rays.push(Ray {
-                origin: o,
-                dir: generate::cosine_direction(n, a / side as f32, b / side as f32),
-                tmin: 0.0,
-                tmax: f32::INFINITY,
-            });
-        }
+        cosine_grid(o, n, side, &mut rays);
     }
     let mut batch = RayBatch::from_rays(rays);
     batch.layout = RayLayout::OriginGrids { side: side as u32 };
@@ -297,15 +303,7 @@ fn grids_crossing_the_scene_bounds() {
     let side = 6;
     for i in (0..cam.len()).filter(|&i| hits.is_hit(i)).step_by(7) {
         let (p, n) = generate::hit_frame(&scene, &cam, &hits, i);
-        for c in 0..side * side {
-            let (a, bb) = ((c % side) as f32 + 0.5, (c / side) as f32 + 0.5);
-            rays.push(Ray {
-                origin: p + n * eps,
-                dir: generate::cosine_direction(n, a / side as f32, bb / side as f32),
-                tmin: 0.0,
-                tmax: f32::INFINITY,
-            });
-        }
+        cosine_grid(p + n * eps, n, side, &mut rays);
     }
     let mut batch = RayBatch::from_rays(rays);
     batch.layout = RayLayout::OriginGrids { side: side as u32 };

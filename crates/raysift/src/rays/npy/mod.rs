@@ -476,6 +476,25 @@ pub fn write_rays(path: impl AsRef<Path>, rays: &RayBatch) -> Result<()> {
     })
 }
 
+/// Writes `scene`'s world-space triangles as float32 `(T, 9)`, corners in primitive-id order
+/// (`raysift export`, and the Embree peer's input).
+pub fn write_triangles(path: impl AsRef<Path>, scene: &Scene) -> Result<()> {
+    let t = scene.triangles();
+    write_atomic(path.as_ref(), |w| {
+        let mut o = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[t.len() as u64, 9])
+            .writer(w)
+            .begin_nd()?;
+        for i in 0..t.len() {
+            for v in t.get(i) {
+                o.extend(v.to_array())?;
+            }
+        }
+        o.finish()
+    })
+}
+
 /// Writes closest hits as the structured `hits.npy`: `t prim geom u v` per ray, and `ng` (the
 /// unit geometric normal) when `normals` is set. `scene` is the scene the hits are of (for the
 /// mesh ids and normals).
