@@ -5,7 +5,7 @@ use crate::args::{open_scene, SCENE_HELP};
 use crate::report::{meshes_of, MeshesReport};
 use anyhow::Result;
 use clap::Args;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ExportArgs {

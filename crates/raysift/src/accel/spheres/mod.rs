@@ -33,11 +33,13 @@
 //! **Part tree** (ours; the paper's scene sphere holds its few parts directly): above the parts,
 //! a binary tree of world-frame spheres over the parts, split at the median of their world
 //! centres along the widest axis, down to bottom nodes of at most [`PART_CLUSTER`] parts; each
-//! node bounds its parts' world spheres directly. Without it every ray group
-//! tests every part sphere, which dominates scenes of thousands of small rigid parts
-//! (BENCHMARKS.md § RTRPS, Table 6). Parts move, so the tree is rebuilt at every update from
-//! the parts' world spheres: O(P log P) in the parts (median selections), no triangle touched, and its node count
-//! (at most 2P) and buffers stay the same, so memory does not change from frame to frame.
+//! node bounds its parts' world spheres directly (as a part's sphere bounds its leaves
+//! directly, not through its inner spheres: each level would add its slack). Without it every
+//! ray group tests every part sphere, which dominates scenes of thousands of small rigid parts
+//! (BENCHMARKS.md § RTRPS, Table 6). Parts move, so the tree is rebuilt at every update from the
+//! parts' world spheres: O(P log P) in the parts (median selections), no triangle touched; its
+//! node count (fewer than P for P > 1) depends only on P, so its buffers, sized at the build,
+//! never grow.
 
 use crate::geom::Aabb;
 use crate::scene::{Change, Scene};
