@@ -44,6 +44,9 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static A: Counting = Counting;
 
+/// The allocator counts every thread: the tests of this file take turns.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// (total bytes allocated, peak live bytes above the start) while running `f`.
 fn measure(f: impl FnOnce()) -> (usize, usize) {
     let (t0, l0) = (TOTAL.load(Relaxed), LIVE.load(Relaxed));
@@ -64,11 +67,24 @@ struct Case {
 }
 
 fn run(scene: &Scene, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &str) -> Case {
-    let opts = vec![
-        ("mode".to_string(), mode.to_string()),
-        ("tasks".to_string(), tasks.to_string()),
-        ("max_shadow_cone_deg".to_string(), shadow_deg.to_string()),
-    ];
+    // The recursion's memory (the light-space pass has its own test below).
+    run_opts(
+        scene,
+        rays,
+        &[
+            ("mode", mode),
+            ("tasks", &tasks.to_string()),
+            ("max_shadow_cone_deg", shadow_deg),
+            ("light_space", "false"),
+        ],
+    )
+}
+
+fn run_opts(scene: &Scene, rays: &RayBatch, opts: &[(&str, &str)]) -> Case {
+    let opts: Vec<(String, String)> = opts
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
     let mut d = tracers::create("dacrt", &opts).unwrap();
     // Outputs are the caller's: allocate them outside the measurement.
     let mut hits = HitBatch::new(rays.len());
@@ -104,6 +120,7 @@ fn run(scene: &Scene, rays: &RayBatch, mode: &str, tasks: usize, shadow_deg: &st
 
 #[test]
 fn dacrt_memory_is_a_deterministic_linear_function() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // Equal triangle counts, very different shapes: 20·4^5 = 20480.
     let t = 20_480;
     let soup = procedural::soup(t, 3);
@@ -202,5 +219,62 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
         // Same numbers for both scenes (shape-independent).
         let (a, b) = seen.split_at(seen.len() / 2);
         assert_eq!(a, b);
+    }
+}
+
+/// The light-space pass (shadow segments to one light, any hit): per task of `R_k` rays, 16
+/// bytes per ray in ray order (coordinates, depth, bucket), 16 + 32 in bucket order (the
+/// footprint check's record and the ray for the shared test), and three 4-byte arrays over
+/// at most `R_k / light_bucket + 7` buckets; nothing per triangle, nothing on a second call,
+/// the same for every scene shape.
+#[test]
+fn light_space_memory_is_a_deterministic_linear_function() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let t = 20_480;
+    let soup = procedural::soup(t, 3);
+    let sphere = procedural::icosphere(t);
+    let r = 3000;
+    for (tasks, per) in [(1usize, 2usize), (2, 2), (3, 5)] {
+        let mut seen = Vec::new();
+        for scene in [&soup, &sphere] {
+            let light = scene.bounds().max + glam::Vec3::ONE;
+            let mut shadow = random_in_box(&scene.bounds(), r, 5);
+            for i in 0..r {
+                let d = light - shadow.origin(i);
+                (shadow.dx[i], shadow.dy[i], shadow.dz[i]) = (d.x, d.y, d.z);
+                shadow.tmax[i] = 1.0;
+            }
+            shadow.layout = RayLayout::ToPoint { target: light };
+            let (ts, ps) = (tasks.to_string(), per.to_string());
+            let c = run_opts(scene, &shadow, &[("tasks", &ts), ("light_bucket", &ps)]);
+            let chunk = r.div_ceil(tasks);
+            let want: usize = (0..tasks)
+                .map(|k| {
+                    let rk = chunk.min(r - k * chunk);
+                    64 * rk + 12 * (rk / per + 7)
+                })
+                .sum();
+            assert_eq!(c.occluded.0, want, "occluded tasks {tasks}");
+            assert!(c.occluded.1 <= want);
+            // The intersection call before it used the recursion; its buffers are another's.
+            let mut d = tracers::create(
+                "dacrt",
+                &[
+                    ("tasks".to_string(), ts.clone()),
+                    ("light_bucket".to_string(), ps.clone()),
+                ],
+            )
+            .unwrap();
+            d.prepare(scene).unwrap();
+            let mut occ = vec![false; r];
+            d.occluded(scene, &shadow, &mut occ, None).unwrap();
+            let (again, _) = measure(|| {
+                d.occluded(scene, &shadow, &mut occ, None).unwrap();
+            });
+            assert_eq!(again, 0, "second call tasks {tasks}");
+            assert_eq!(d.bytes(), 24 * t + want, "held tasks {tasks}");
+            seen.push(c.occluded.0);
+        }
+        assert_eq!(seen[0], seen[1]);
     }
 }

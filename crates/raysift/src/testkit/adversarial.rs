@@ -11,6 +11,7 @@
 //! | `scale` | a mesh scaled by 1e6 or 1e-6, or moved 1e5 away | aimed at its vertices, camera rays |
 //! | `directions` | a soup | denormal-small and huge direction vectors, `t` up to 1e30 |
 //! | `camera` | a grid (tilted or not), a fan, or both | a pinhole camera (layout set: DACRT's packets, screen culling and tile leaves), often at grazing angles, sometimes jittered |
+//! | `light` | a tilted grid and a soup, at scales 1e-4 to 1e4, sometimes far from the origin | shadow segments to one point light (layout `ToPoint`: DACRT's light-space pass): behind the grid's vertices and edges as seen from the light, from coincident origins, of zero length, ending past the light, stopping short of it, normalised; the light inside the scene, on a grid vertex, on a triangle's plane or outside; some rays not towards the light |
 //! | `grids` | a tilted grid and a soup | side×side groups from one origin each (layout `OriginGrids`: RTRPS's ray-planes): cosine hemisphere grids whose rows are azimuths (their rows cancel: the grid frame's hard case) or radii, shadow grids ending on a square light, from inside and around the scene |
 //!
 //! Every class mixes in some ordinary rays, and intervals `[tmin, tmax]` ending exactly at the
@@ -34,6 +35,7 @@ pub const CLASSES: &[&str] = &[
     "directions",
     "camera",
     "grids",
+    "light",
 ];
 
 /// One generated case.
@@ -374,6 +376,84 @@ pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
                 });
             }
             out.layout = crate::rays::RayLayout::OriginGrids { side: side as u32 };
+            scene
+        }
+        "light" => {
+            let k = rng.gen_range(3..16);
+            let (tris, targets) = grid(k);
+            let xf = Affine3A::from_rotation_translation(
+                Quat::from_axis_angle(unit(&mut rng), rng.gen_range(0.0..1.5)),
+                unit(&mut rng) * rng.gen_range(0.0..3.0),
+            );
+            let mut tris: Vec<[Vec3; 3]> = tris
+                .iter()
+                .map(|t| t.map(|p| xf.transform_point3(p)))
+                .collect();
+            let targets: Vec<Vec3> = targets.iter().map(|&p| xf.transform_point3(p)).collect();
+            let soup = procedural::soup(120, seed);
+            for i in 0..soup.len() {
+                tris.push(soup.triangles().get(i).map(|p| p * k as f32 * 0.5));
+            }
+            // Scale and offset (huge and tiny scenes, far from the origin).
+            let (m, off) = match rng.gen_range(0..5) {
+                0 => (1e-4, Vec3::ZERO),
+                1 => (1e4, Vec3::ZERO),
+                2 => (1.0, Vec3::new(1e4, -3e3, 2e3)),
+                _ => (1.0, Vec3::ZERO),
+            };
+            let at = |p: Vec3| p * m + off;
+            let tris: Vec<[Vec3; 3]> = tris.iter().map(|t| t.map(at)).collect();
+            let targets: Vec<Vec3> = targets.into_iter().map(at).collect();
+            let scene = soup_scene(&format!("light:{seed}"), &tris);
+            let b = scene.bounds();
+            let (c, r) = (b.center(), b.extent().length().max(1e-30));
+            let light = match rng.gen_range(0..4) {
+                // On a grid vertex (on two triangles' planes and corners).
+                0 => targets[rng.gen_range(0..targets.len())],
+                // Inside the bounds.
+                1 => c + unit(&mut rng) * r * 0.2,
+                // On the grid's plane, off its vertices.
+                2 => at(xf.transform_point3(Vec3::new(
+                    rng.gen_range(-1.0..k as f32 + 1.0),
+                    rng.gen_range(-1.0..k as f32 + 1.0),
+                    0.0,
+                ))),
+                _ => c + unit(&mut rng) * r * 1.5,
+            };
+            let mut prev = c;
+            while out.len() < rays {
+                let o = match rng.gen_range(0..8) {
+                    // Behind a grid point as seen from the light.
+                    0..=2 => {
+                        let t = targets[rng.gen_range(0..targets.len())];
+                        light + (t - light) * rng.gen_range(1.0..3.0)
+                    }
+                    // The previous origin again (coincident end points).
+                    3 => prev,
+                    // On the light (zero length).
+                    4 if rng.gen_range(0..4) == 0 => light,
+                    _ => c + unit(&mut rng) * r * rng.gen_range(0.0..0.8),
+                };
+                prev = o;
+                let d = light - o;
+                let (dir, tmin, tmax) = match rng.gen_range(0..8) {
+                    0 => (d, 0.0, 1.0 - 1e-4),
+                    1 => (d.normalize_or_zero(), 0.0, d.length()),
+                    // Past the light.
+                    2 => (d, 0.0, 1.5),
+                    3 => (d, 0.25, 1.0),
+                    // Not towards the light.
+                    4 if rng.gen_range(0..3) == 0 => (unit(&mut rng), 0.0, f32::INFINITY),
+                    _ => (d, 0.0, 1.0),
+                };
+                out.push(Ray {
+                    origin: o,
+                    dir,
+                    tmin,
+                    tmax,
+                });
+            }
+            out.layout = crate::rays::RayLayout::ToPoint { target: light };
             scene
         }
         _ => return None,

@@ -123,6 +123,13 @@ pub struct Config {
     /// or projection pass and the top tree's build, the dividing steps, the leaves). Off by
     /// default: a clock read per leaf costs a few percent of a camera call.
     pub phase_times: bool,
+    /// Ours (`light.rs`): any-hit batches of segments to one point light (layout `ToPoint`)
+    /// are traced in the light's frame, each triangle tested against the segments its
+    /// light-space footprint covers, instead of by the recursion. Default true
+    /// (BENCHMARKS.md, § DACRT: shadow rays in light space).
+    pub light_space: bool,
+    /// The light-space pass's buckets hold about this many segments. Default 2.
+    pub light_bucket: usize,
 }
 
 impl Default for Config {
@@ -151,6 +158,8 @@ impl Default for Config {
             top_leaf: 32,
             top_growth: 1.0,
             phase_times: false,
+            light_space: true,
+            light_bucket: 2,
         }
     }
 }
@@ -180,6 +189,8 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "top_leaf", doc: "the top tree's leaves hold at most this many triangles" },
     OptionDoc { key: "top_growth", doc: "the top tree's lists hold at most (1 + this) times the triangles" },
     OptionDoc { key: "phase_times", doc: "time each call's phases into the ns_* counters (ours)" },
+    OptionDoc { key: "light_space", doc: "any-hit segments to one point light: traced in the light's frame, triangles against the segments under their footprint (ours)" },
+    OptionDoc { key: "light_bucket", doc: "the light-space pass's buckets hold about this many segments" },
 ];
 
 /// The paper's small limits and ours pushed to their extremes (deep recursions everywhere),
@@ -199,13 +210,15 @@ macro_rules! tiny {
             ("max_cone_deg", "60"),
             ("max_shadow_cone_deg", "60"),
             ("pixel_leaf_c_limit", "1"),
+            ("light_space", "false"),
         ]
     };
 }
 
 /// Configurations the conformance suite checks besides the defaults: every mode with one task
-/// and with tiny limits over three tasks, the paper's cones and leaf rule, flushes, shadow
-/// packets, and no huge pages.
+/// and with tiny limits over three tasks (those without the light-space pass), the paper's
+/// cones and leaf rule, flushes, shadow packets, the light-space pass's buckets, and no huge
+/// pages.
 pub const PRESETS: &[Preset] = &[
     Preset {
         name: "packet",
@@ -246,6 +259,7 @@ pub const PRESETS: &[Preset] = &[
             ("tasks", "2"),
             ("max_cone_deg", "80"),
             ("max_shadow_cone_deg", "80"),
+            ("light_space", "false"),
             ("flush_filter", "false"),
             ("pixel_cull", "false"),
             ("pixel_leaf", "false"),
@@ -275,7 +289,16 @@ pub const PRESETS: &[Preset] = &[
             ("tasks", "1"),
             ("c_limit", "100000"),
             ("max_shadow_cone_deg", "30"),
+            ("light_space", "false"),
         ],
+    },
+    Preset {
+        name: "light space, one segment per bucket, three tasks",
+        opts: &[("tasks", "3"), ("light_bucket", "1")],
+    },
+    Preset {
+        name: "light space, large buckets, ray mode",
+        opts: &[("mode", "ray"), ("tasks", "2"), ("light_bucket", "50")],
     },
     Preset {
         name: "paper's cones with tile leaves",

@@ -19,6 +19,7 @@
 //! | `screen.rs` | screen-space and pixel culling: the pixel check, the projection | ours |
 //! | `tile_leaf.rs` | tile leaves | ours |
 //! | `top.rs` | the top tree: the upper levels kept between calls for sparse batches | ours |
+//! | `light.rs` | shadow segments to one point light traced in the light's frame | ours |
 //! | `scratch.rs` | the buffers kept between calls, on huge pages | ours |
 //! | `tests.rs` | unit tests of the pieces (the tracer's own: `tests/dacrt.rs`) | |
 //!
@@ -162,6 +163,7 @@
 
 mod cone_rec;
 mod config;
+mod light;
 mod order;
 mod packets;
 pub(crate) mod partition;
@@ -180,7 +182,7 @@ pub use config::{Config, Mode, OPTION_DOCS, PRESETS};
 use crate::error::Result;
 use crate::geom::PixelProjection;
 use crate::mem::reserve_exact_huge;
-use crate::rays::{HitBatch, RayBatch};
+use crate::rays::{HitBatch, RayBatch, RayLayout};
 use crate::scene::{Change, Scene, Stamp, TriangleSoup};
 use crate::tracer::{
     par_occlusion_chunks, par_ray_chunks, CostMut, CounterDocs, RayCost, Stats, Tally, Tracer,
@@ -212,6 +214,9 @@ pub struct Dacrt {
     /// The top tree of the prepared scene (`top.rs`), built by the first call that wants it
     /// and dropped by a prepare that changes a triangle.
     top: OnceLock<TopTree>,
+    /// The largest coordinate magnitude of the prepared triangles (the light-space pass pads
+    /// boxes relative to it).
+    scale: f32,
 }
 
 impl Dacrt {
@@ -223,6 +228,7 @@ impl Dacrt {
             span: Default::default(),
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
             top: OnceLock::new(),
+            scale: 0.0,
         }
     }
 
@@ -349,6 +355,12 @@ crate::counters! {
         /// Tile leaves: live pixels of triangles' rectangles skipped because the triangle lies
         /// beyond every best hit of the tile (`Config::depth_cull`).
         depth_culled,
+        /// Light-space pass (`light.rs`): segments traced in the light's frame.
+        light_rays,
+        /// Light-space pass: triangles near the light (tested against every live segment).
+        light_near,
+        /// Light-space pass: buckets under the triangles' footprints.
+        light_buckets,
         /// 1 when this call built the top tree (its triangle/box tests are in `tri_box`).
         top_built,
         /// With `phase_times`: nanoseconds (summed over tasks) of set-up and write-back (ray
@@ -371,6 +383,81 @@ crate::counters! {
         /// Triangles whose per-axis min/max lists were written (all of them for a new scene,
         /// those of the moved or deformed meshes after a change, none when nothing changed).
         triangles,
+    }
+}
+
+impl Dacrt {
+    /// Any hits by the recursion (camera, shadow packets, rays).
+    fn occluded_rec(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        occluded: &mut Vec<bool>,
+        cost: Option<&mut RayCost>,
+    ) -> Tally<Counts> {
+        let (plan, packets) = self.plan(rays);
+        let (top, built) = self.top_tree(scene, rays, &plan);
+        let mut tally: Tally<Counts> =
+            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, cost| {
+                self.run_task::<true>(
+                    scene,
+                    rays,
+                    range,
+                    &plan,
+                    packets,
+                    top,
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    &mut [],
+                    out,
+                    cost,
+                )
+            });
+        charge_top(&mut tally.counts, built);
+        tally
+    }
+
+    /// Any hits of segments to `light` by the light-space pass (`light.rs`), one task per
+    /// share of the rays; the segments it cannot take go through [`Self::occluded_rec`].
+    fn occluded_light(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        light: Vec3,
+        occluded: &mut Vec<bool>,
+        mut cost: Option<&mut RayCost>,
+    ) -> Tally<Counts> {
+        let chunk = rays.len().div_ceil(self.tasks()).max(1);
+        let tris = scene.triangles();
+        let out: light::LightOut = par_occlusion_chunks(
+            rays,
+            occluded,
+            cost.as_deref_mut(),
+            chunk,
+            |range, occ, c| self.light_task(tris, rays, range, chunk, light, occ, c),
+        );
+        let mut tally = Tally {
+            counts: out.counts,
+            peak_bytes: out.peak,
+        };
+        if out.misfits.is_empty() {
+            return tally;
+        }
+        let sub = RayBatch::from_rays(out.misfits.iter().map(|&i| rays.get(i as usize)));
+        let mut occ = Vec::new();
+        let mut sub_cost = cost.as_ref().map(|_| RayCost::default());
+        tally = tally + self.occluded_rec(scene, &sub, &mut occ, sub_cost.as_mut());
+        for (j, &i) in out.misfits.iter().enumerate() {
+            let i = i as usize;
+            occluded[i] = occ[j];
+            if let (Some(c), Some(s)) = (cost.as_deref_mut(), sub_cost.as_ref()) {
+                c.nodes[i] = c.nodes[i].saturating_add(s.nodes[j]);
+                c.tests[i] = c.tests[i].saturating_add(s.tests[j]);
+                c.triangles[i] = c.triangles[i].saturating_add(s.triangles[j]);
+            }
+        }
+        tally
     }
 }
 
@@ -460,6 +547,14 @@ impl Tracer for Dacrt {
         };
         if written > 0 {
             self.top = OnceLock::new();
+            // NaN-safe: `max` skips NaN; degenerate triangles' infinite spans are skipped.
+            self.scale = self
+                .span
+                .iter()
+                .flatten()
+                .flatten()
+                .filter(|v| v.is_finite())
+                .fold(0.0f32, |m, v| m.max(v.abs()));
         }
         self.stamp = scene.stamp();
         Ok(Stats::prepared(
@@ -524,26 +619,12 @@ impl Tracer for Dacrt {
             }
             return Ok(Stats::traced(rays.len(), &Counts::default()));
         }
-        let (plan, packets) = self.plan(rays);
-        let (top, built) = self.top_tree(scene, rays, &plan);
-        let mut tally: Tally<Counts> =
-            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, cost| {
-                self.run_task::<true>(
-                    scene,
-                    rays,
-                    range,
-                    &plan,
-                    packets,
-                    top,
-                    &mut [],
-                    &mut [],
-                    &mut [],
-                    &mut [],
-                    out,
-                    cost,
-                )
-            });
-        charge_top(&mut tally.counts, built);
+        let tally = match rays.layout {
+            RayLayout::ToPoint { target } if self.cfg.light_space => {
+                self.occluded_light(scene, rays, target, occluded, cost)
+            }
+            _ => self.occluded_rec(scene, rays, occluded, cost),
+        };
         Ok(tally.into_stats(rays.len()))
     }
 

@@ -368,6 +368,7 @@ impl Dacrt {
         task.st.ns_setup += ns_since(c_back);
         // The buffers go back to this share's slot for the next call.
         if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
+            let light = std::mem::take(&mut g.light);
             *g = Scratch {
                 tri_idx: task.tri_idx,
                 ray_idx: task.ray_idx,
@@ -380,6 +381,7 @@ impl Dacrt {
                 touched: task.touched,
                 touched_list: task.touched_list,
                 zreach: task.zreach,
+                light,
             };
         }
         Tally {

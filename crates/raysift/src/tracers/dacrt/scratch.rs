@@ -1,6 +1,7 @@
 //! Ours: each task's buffers, kept between calls in a pool (a dynamic scene's frames allocate
 //! nothing after the first), allocated on transparent huge pages when asked.
 
+use super::light::LightScratch;
 use super::packets::PackedCone;
 use super::ray_rec::RayRec;
 use crate::mem::reserve_exact_huge;
@@ -23,6 +24,8 @@ pub(super) struct Scratch {
     pub(super) touched: Vec<u64>,
     pub(super) touched_list: Vec<u32>,
     pub(super) zreach: Vec<f32>,
+    /// The light-space pass's buffers (`light.rs`).
+    pub(super) light: LightScratch,
 }
 
 impl Scratch {
@@ -41,6 +44,7 @@ impl Scratch {
             + b(&self.touched)
             + b(&self.touched_list)
             + b(&self.zreach)
+            + self.light.bytes()
     }
 }
 
