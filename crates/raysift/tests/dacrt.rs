@@ -146,7 +146,11 @@ fn dacrt_counters_and_packets_help() {
     // Shadow packets (light cones) are used when allowed.
     let mut d = tracers::create(
         "dacrt",
-        &opts(&[("mode", "packet"), ("max_shadow_cone_deg", "30")]),
+        &opts(&[
+            ("mode", "packet"),
+            ("max_shadow_cone_deg", "30"),
+            ("light_space", "false"),
+        ]),
     )
     .unwrap();
     d.prepare(&s).unwrap();
@@ -240,10 +244,69 @@ fn dacrt_phase_times() {
             assert_eq!(on.get(w), off.get(w), "{w}: {on:?} vs {off:?}");
         }
     }
-    let mut d = tracers::create("dacrt", &opts(&[("phase_times", "true")])).unwrap();
+    let mut d = tracers::create(
+        "dacrt",
+        &opts(&[("phase_times", "true"), ("light_space", "false")]),
+    )
+    .unwrap();
     d.prepare(&s).unwrap();
     let (hits, _) = d.intersect_timed(&s, &cam).unwrap();
     let (shadow, _) = shadow_rays(&s, &cam, &hits, Vec3::new(2.0, 3.0, 2.0));
     let (_, st) = d.occluded_timed(&s, &shadow).unwrap();
     assert!(phases.iter().all(|p| st.work.get(p) > 0), "{st:?}");
+    // The light-space pass has a set-up and a triangle pass (its "leaves"), nothing else.
+    let mut d = tracers::create("dacrt", &opts(&[("phase_times", "true")])).unwrap();
+    d.prepare(&s).unwrap();
+    let (_, st) = d.occluded_timed(&s, &shadow).unwrap();
+    let w = &st.work;
+    assert!(w.get("light_rays") > 0 && w.get("ns_setup") > 0 && w.get("ns_leaves") > 0);
+    assert_eq!((w.get("ns_lists"), w.get("ns_divide")), (0, 0), "{st:?}");
+}
+
+/// The light-space pass takes the segments that end at the light and leaves the others to the
+/// recursion; on dense meshes it needs far fewer ray/triangle tests than the recursion, and
+/// its footprints visit a few buckets per triangle.
+#[test]
+fn light_space_pass_takes_shadow_segments() {
+    // Spheres that shadow each other.
+    let s = procedural::tile(&procedural::icosphere(5_000), 3).unwrap();
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(128, 128);
+    let run_occ = |rays: &RayBatch, o: &[(&str, &str)]| {
+        let mut d = tracers::create("dacrt", &opts(o)).unwrap();
+        d.prepare(&s).unwrap();
+        d.occluded_timed(&s, rays).unwrap()
+    };
+    let mut d = tracers::create("naive", &[]).unwrap();
+    d.prepare(&s).unwrap();
+    let (hits, _) = d.intersect_timed(&s, &cam).unwrap();
+    let (shadow, _) = shadow_rays(&s, &cam, &hits, Vec3::new(2.0, 3.0, 2.0));
+    let n = shadow.len() as u64;
+    let ((on_occ, on), (off_occ, off)) = (
+        run_occ(&shadow, &[]),
+        run_occ(&shadow, &[("light_space", "false")]),
+    );
+    assert_eq!(on_occ, off_occ);
+    assert!(on_occ.iter().any(|&o| o) && !on_occ.iter().all(|&o| o));
+    assert_eq!(on.work.get("light_rays"), n);
+    assert!(
+        on.work.get("ray_tri") * 2 < off.work.get("ray_tri"),
+        "{on:?} vs {off:?}"
+    );
+    assert!(on.work.get("light_buckets") < 20 * s.len() as u64, "{on:?}");
+    // A quarter of the segments turned off the light (their directions' components rotated;
+    // still labelled `ToPoint`): those go through the recursion, with the same answers as
+    // naive. (Segments turned straight away from it still fit: their line passes the light.)
+    let mut mixed = shadow.clone();
+    for i in (0..mixed.len()).step_by(4) {
+        (mixed.dx[i], mixed.dy[i], mixed.dz[i]) = (mixed.dy[i], mixed.dz[i], mixed.dx[i]);
+    }
+    let (occ, st) = run_occ(&mixed, &[]);
+    assert_eq!(
+        st.work.get("light_rays"),
+        n - mixed.len().div_ceil(4) as u64
+    );
+    assert!(st.work.get("nodes") + st.work.get("leaves") > 0, "{st:?}");
+    let mut naive = tracers::create("naive", &[]).unwrap();
+    naive.prepare(&s).unwrap();
+    assert_eq!(occ, naive.occluded_timed(&s, &mixed).unwrap().0);
 }

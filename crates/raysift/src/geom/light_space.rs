@@ -8,7 +8,7 @@
 //! **Faces.** Face `f` looks along axis `f / 2` (positive for even `f`); a direction `w` from
 //! the light belongs to the face of its largest `|w_k|` (the first on ties) and has the face
 //! coordinates `(a, b) = (w_{k1}, w_{k2}) / x` with `x = ±w_k > 0` and `k1 < k2` the other
-//! two axes, so `|a|, |b| <= 1`.
+//! two axes, so `|a|, |b| <= 1` (up to a rounding).
 //!
 //! **Why a footprint is conservative.** A hit of the shared test lies in the triangle's
 //! bounding box: the box gate puts its `t` inside the box's f32 slab interval, whose ends are
@@ -74,7 +74,9 @@ pub fn segment_slack(light: Vec3, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Opt
     } else {
         e.length()
     };
-    let eps = eps + REL * (w.length() + d64.length() * tmax);
+    // 1-norms bound the lengths (no square roots).
+    let l1 = |v: DVec3| v.abs().element_sum();
+    let eps = eps + REL * (l1(w) + l1(d64) * tmax);
     (eps <= FIT_SLACK * (w.abs().max_element() + l.abs().max_element())).then_some(eps)
 }
 
@@ -100,10 +102,12 @@ pub fn segment_view(light: Vec3, o: Vec3, d: Vec3, tmax: f32) -> Option<SegmentV
     let face = 2 * k + (s < 0.0) as usize;
     // The depth: the larger end, raised.
     let depth = (x.max(s * e[k])) * (1.0 + REL) + REL * (x + e.abs().max_element());
+    // One division (the product's extra rounding is far inside the footprints' pad).
+    let inv = 1.0 / x;
     Some(SegmentView {
         face,
-        a: w[k1] / x,
-        b: w[k2] / x,
+        a: w[k1] * inv,
+        b: w[k2] * inv,
         depth,
     })
 }

@@ -101,7 +101,7 @@ fn every_hit_is_inside_its_footprint() {
         let view = LightView::new(light, slack, scale_all as f64, 0.0).unwrap();
         for &(o, d, tmin, tmax) in &segs {
             let s = view.segment(o, d, tmax).unwrap();
-            assert!(s.a.abs() <= 1.0 && s.b.abs() <= 1.0);
+            assert!(s.a.abs() <= 1.0 + 1e-15 && s.b.abs() <= 1.0 + 1e-15);
             for t in &tris {
                 let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
                 let near = view.near(lo, hi);

@@ -117,6 +117,16 @@
 //!   that cannot reach as near ([`crate::geom::hit_reach_floor`]). They cut ray/triangle pairs
 //!   (Sponza −20%, Cornell −54% with the edge test) but not time (BENCHMARKS.md, § DACRT:
 //!   large triangles).
+//! - **Shadow segments in the light's frame** (ours, `Config::light_space`, `light.rs`, the
+//!   geometry in [`crate::geom::LightView`]; issue #21 item 1): any-hit batches of segments
+//!   ending at one point light (`ToPoint`) are camera rays seen from the light. Each task
+//!   sorts its segments into buckets on the six faces of a cube around the light and streams
+//!   the min/max lists once: a triangle's box footprint on a face, padded so that no hit can
+//!   fall outside it, selects the buckets, and the segments there whose coordinates it holds
+//!   and which reach as deep go through the shared test; an occluded segment leaves its
+//!   bucket. Triangles in a small ball around the light are tested against every segment;
+//!   segments that do not end at the light go through the recursion (BENCHMARKS.md, § DACRT:
+//!   shadow rays in light space).
 //! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
 //!   the rays (bands of tile rows for camera rays) and their own index lists.
 //! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
@@ -145,6 +155,12 @@
 //!   ray from the eye within 2 pixels of its pixel, one `tmin`) have no ray list but
 //!   `8·T·K` (pixel rectangles) and, per tile, 1036 bytes besides its cone: 64 ray records of
 //!   16 bytes, and 12 for the leaves' bookkeeping (16 with `depth_cull`).
+//!
+//! Any-hit `ToPoint` batches with `light_space` (the default) use none of that but, per task of
+//! `R_k` rays, `64·R_k + 12·(⌊R_k / light_bucket⌋ + 7)` bytes (16 per ray in ray order, 16 + 32
+//! in bucket order, three 4-byte arrays over the buckets; `tests/dacrt_memory.rs` checks it);
+//! the `m` segments it leaves to the recursion (usually none) add a copy of those rays, their
+//! indices and flags (37 bytes each) and the recursion's buffers for `m` rays as above.
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
