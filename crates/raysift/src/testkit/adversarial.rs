@@ -108,6 +108,31 @@ fn grid(k: usize) -> (Vec<[Vec3; 3]>, Vec<Vec3>) {
     (tris, targets)
 }
 
+/// A [`grid`] of `k × k` quads moved to a random pose and a soup of `soup` triangles over it:
+/// the triangles, the grid's target points (posed) and the pose.
+fn grid_and_soup(
+    rng: &mut Pcg64Mcg,
+    k: usize,
+    soup: usize,
+    seed: u64,
+) -> (Vec<[Vec3; 3]>, Vec<Vec3>, Affine3A) {
+    let (tris, targets) = grid(k);
+    let xf = Affine3A::from_rotation_translation(
+        Quat::from_axis_angle(unit(rng), rng.gen_range(0.0..1.5)),
+        unit(rng) * rng.gen_range(0.0..3.0),
+    );
+    let mut tris: Vec<[Vec3; 3]> = tris
+        .iter()
+        .map(|t| t.map(|p| xf.transform_point3(p)))
+        .collect();
+    let targets = targets.iter().map(|&p| xf.transform_point3(p)).collect();
+    let soup = procedural::soup(soup, seed);
+    for i in 0..soup.len() {
+        tris.push(soup.triangles().get(i).map(|p| p * k as f32 * 0.5));
+    }
+    (tris, targets, xf)
+}
+
 /// Case `seed` of `class` with about `rays` rays.
 pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
     let mut rng = Pcg64Mcg::seed_from_u64(seed ^ 0x5eed_u64.wrapping_mul(seed + 1));
@@ -313,19 +338,7 @@ pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
         }
         "grids" => {
             let k = rng.gen_range(3..20);
-            let (tris, _) = grid(k);
-            let xf = Affine3A::from_rotation_translation(
-                Quat::from_axis_angle(unit(&mut rng), rng.gen_range(0.0..1.5)),
-                unit(&mut rng) * rng.gen_range(0.0..3.0),
-            );
-            let mut tris: Vec<[Vec3; 3]> = tris
-                .iter()
-                .map(|t| t.map(|p| xf.transform_point3(p)))
-                .collect();
-            let soup = procedural::soup(150, seed);
-            for i in 0..soup.len() {
-                tris.push(soup.triangles().get(i).map(|p| p * k as f32 * 0.5));
-            }
+            let (tris, _, _) = grid_and_soup(&mut rng, k, 150, seed);
             let scene = soup_scene(&format!("grids:{seed}"), &tris);
             let b = scene.bounds();
             let (c, r) = (b.center(), b.extent().length().max(1e-3));
@@ -380,20 +393,7 @@ pub fn case(class: &str, seed: u64, rays: usize) -> Option<Case> {
         }
         "light" => {
             let k = rng.gen_range(3..16);
-            let (tris, targets) = grid(k);
-            let xf = Affine3A::from_rotation_translation(
-                Quat::from_axis_angle(unit(&mut rng), rng.gen_range(0.0..1.5)),
-                unit(&mut rng) * rng.gen_range(0.0..3.0),
-            );
-            let mut tris: Vec<[Vec3; 3]> = tris
-                .iter()
-                .map(|t| t.map(|p| xf.transform_point3(p)))
-                .collect();
-            let targets: Vec<Vec3> = targets.iter().map(|&p| xf.transform_point3(p)).collect();
-            let soup = procedural::soup(120, seed);
-            for i in 0..soup.len() {
-                tris.push(soup.triangles().get(i).map(|p| p * k as f32 * 0.5));
-            }
+            let (tris, targets, xf) = grid_and_soup(&mut rng, k, 120, seed);
             // Scale and offset (huge and tiny scenes, far from the origin).
             let (m, off) = match rng.gen_range(0..5) {
                 0 => (1e-4, Vec3::ZERO),

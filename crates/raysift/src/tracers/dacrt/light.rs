@@ -422,34 +422,36 @@ impl Pass<'_, '_> {
                 q += 1;
                 continue;
             }
-            let [v0, v1, v2] = *tri.get_or_insert_with(|| self.tris.get(t));
-            if self.test(q, p.ray, v0, v1, v2) {
-                end -= 1;
-                self.pts.swap(q, end);
-                self.segs.swap(q, end);
-            } else {
-                q += 1;
-            }
+            let v = *tri.get_or_insert_with(|| self.tris.get(t));
+            q = self.step(q, &mut end, v);
         }
         self.live[b] = end as u32;
     }
 
     /// Triangle `t` (near the light) against every live segment.
     fn everywhere(&mut self, t: usize, nb: usize) {
-        let [v0, v1, v2] = self.tris.get(t);
+        let v = self.tris.get(t);
         for b in 0..nb {
             let mut q = self.start[b] as usize;
             let mut end = self.live[b] as usize;
             while q < end {
-                if self.test(q, self.pts[q].ray, v0, v1, v2) {
-                    end -= 1;
-                    self.pts.swap(q, end);
-                    self.segs.swap(q, end);
-                } else {
-                    q += 1;
-                }
+                q = self.step(q, &mut end, v);
             }
             self.live[b] = end as u32;
+        }
+    }
+
+    /// Tests the segment in slot `q` of a bucket whose live slots end at `end` against
+    /// triangle `v`: an occluded one is swapped out of the live range. Returns the next slot.
+    #[inline(always)]
+    fn step(&mut self, q: usize, end: &mut usize, v: [Vec3; 3]) -> usize {
+        if self.test(q, self.pts[q].ray, v[0], v[1], v[2]) {
+            *end -= 1;
+            self.pts.swap(q, *end);
+            self.segs.swap(q, *end);
+            q
+        } else {
+            q + 1
         }
     }
 
