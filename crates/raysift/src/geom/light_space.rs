@@ -34,6 +34,9 @@
 //! triangle whose box starts deeper than a point's `depth` cannot shadow it. The arithmetic is
 //! f64 on f32 data (relative errors near 1e-16), padded by a relative 1e-12.
 
+// Negated comparisons on purpose: each `!(a <= b)` also takes the NaN case the safe way.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use glam::{DVec3, Vec3};
 
 /// A segment fits the light-space pass when its slack is at most this fraction of
@@ -238,7 +241,7 @@ impl LightView {
             lo.as_dvec3() - self.pad - self.light,
             hi.as_dvec3() + self.pad - self.light,
         );
-        let (x_lo, x_hi) = if face % 2 == 0 {
+        let (x_lo, x_hi) = if face.is_multiple_of(2) {
             (lo[k], hi[k])
         } else {
             (-hi[k], -lo[k])
