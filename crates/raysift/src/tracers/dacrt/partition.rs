@@ -2,6 +2,7 @@
 //! the triangle and ray lists (branch-free Lomuto loops over the min/max lists and the ray
 //! records), with the block move that hands the first child's rejects to the second.
 
+use super::ray_rec::RayRec;
 use super::Task;
 use crate::geom::Aabb;
 
@@ -33,7 +34,20 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let recs = &mut self.recs[..rend];
         let ids = &mut self.ray_idx[..rend];
         let mut k = start;
-        for p in start..rend {
+        let mut p = start;
+        // Four rays decided at once: the swaps at `p..p + j` touch only slots below `p + j`,
+        // so the records decided up front are still the ones each swap moves.
+        while p + 4 <= rend {
+            let four: &[RayRec; 4] = recs[p..p + 4].try_into().expect("four records");
+            let keep = b.hit_by_packed4(four);
+            for j in 0..4 {
+                recs.swap(k, p + j);
+                ids.swap(k, p + j);
+                k += (keep >> j & 1) as usize;
+            }
+            p += 4;
+        }
+        for p in p..rend {
             let keep = b.hit_by_packed(&recs[p]);
             recs.swap(k, p);
             ids.swap(k, p);

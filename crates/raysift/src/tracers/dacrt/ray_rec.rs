@@ -3,7 +3,7 @@
 //! with §3.4's z-buffer for closest hits.
 
 use super::order::Order;
-use super::partition::gather_block;
+use super::partition::{gather_block, prefetch};
 use super::split::{half, no_progress};
 use super::{clock, ns_since, Task};
 use crate::geom::{intersect_triangle, intersect_triangle4, Aabb, PackedRay, Tri4};
@@ -17,6 +17,14 @@ use glam::{Vec3, Vec4};
 fn widen(t: f32) -> f32 {
     t + t.abs() * (4.0 * f32::EPSILON)
 }
+
+/// How many rays ahead the leaf loop asks for a ray's scattered data ([`Task::prefetch_ray`]):
+/// random rays on Sponza 313 → 260 ms, the 871K dragon 487 → 444 ms (4, 8 and 16 measured;
+/// BENCHMARKS.md, § DACRT: random and bounce rays).
+const LEAF_RAY_PREFETCH: usize = 4;
+
+/// How many triangles ahead a four-wide leaf's gather asks for their corners.
+const LEAF_TRI_PREFETCH: usize = 8;
 
 /// Leaves with at most this many triangles run the four-wide triangle test on a gathered copy.
 const LEAF4_MAX: usize = 64;
@@ -52,6 +60,24 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             o_tmin: self.rays.origin(i).extend(self.rays.tmin[i]),
             inv_tmax,
         };
+    }
+
+    /// Asks for ray `r`'s scattered data (its direction and, for closest hits, its best hit
+    /// so far) ahead of the leaf loop: the ray list is in cell order, the arrays in ray order.
+    #[inline(always)]
+    fn prefetch_ray(&self, r: usize) {
+        let i = self.base + r;
+        prefetch(&self.rays.dx, i);
+        prefetch(&self.rays.dy, i);
+        prefetch(&self.rays.dz, i);
+        if ANY {
+            prefetch(&self.rays.tmax, i);
+        } else {
+            prefetch(self.t, r);
+            prefetch(self.prim, r);
+            prefetch(self.u, r);
+            prefetch(self.v, r);
+        }
     }
 
     /// Algorithm 1 on rays `ray_idx[rterm..rend]` and triangles `tri_idx[..nt]` in `cell`;
@@ -194,6 +220,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut buf = [Tri4::default(); LEAF4_MAX / 4];
         let mut ids = [0u32; LEAF4_MAX];
         for q in 0..nt {
+            if let Some(&f) = self.tri_idx[..nt].get(q + LEAF_TRI_PREFETCH) {
+                prefetch(&tris.v0, f as usize);
+                prefetch(&tris.v1, f as usize);
+                prefetch(&tris.v2, f as usize);
+            }
             let t = self.tri_idx[q];
             let tu = t as usize;
             ids[q] = t;
@@ -249,6 +280,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut tests = 0u64;
         let mut p = self.rterm;
         while p < rend {
+            if let Some(&f) = self.ray_idx[..rend].get(p + LEAF_RAY_PREFETCH) {
+                self.prefetch_ray(f as usize);
+            }
             let r = self.ray_idx[p] as usize;
             let i = self.base + r;
             let rec = self.recs[p].o_tmin;
