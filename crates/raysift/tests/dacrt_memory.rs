@@ -189,25 +189,24 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                     4 * t * tasks + 36 * r + 68 * cones + order
                 };
                 // Batches without packets (R ≤ 2·T here) build the top tree in their first
-                // call and keep it: lists of 2·T entries, 4·⌈2·T / 32⌉ + 1 nodes of 16 bytes,
-                // and 4·T of working indices during the build.
+                // call and keep it: lists of 2·T entries (also the build's working space) and
+                // 4·⌈2·T / 32⌉ + 1 nodes of 16 bytes.
                 let top = if matches!(mode, "ray" | "random" | "auto" | "shadow rays") {
                     4 * 2 * t + 16 * (4 * (2 * t).div_ceil(32) + 1)
                 } else {
                     0
                 };
-                let work = if top > 0 { 4 * t } else { 0 };
                 assert_eq!(
                     c.intersect.0,
-                    want + top + work,
+                    want + top,
                     "intersect {mode} tasks {tasks}"
                 );
                 assert_eq!(
                     c.occluded.0,
-                    want + top + work,
+                    want + top,
                     "occluded {mode} tasks {tasks}"
                 );
-                assert!(c.intersect.1 <= want + top + work && c.occluded.1 <= want + top + work);
+                assert!(c.intersect.1 <= want + top && c.occluded.1 <= want + top);
                 // The buffers stay with the tracer: a second call of the same size allocates
                 // nothing, and the tracer holds the min/max lists, one call's buffers and the
                 // top tree.

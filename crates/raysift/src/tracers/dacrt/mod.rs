@@ -205,6 +205,7 @@ use crate::tracer::{
 };
 use glam::{Vec3, Vec4};
 use order::View;
+use rayon::prelude::*;
 use packets::{PackedCone, Packets};
 use ray_rec::RayRec;
 use scratch::{Scratch, MAX_POOLED};
@@ -504,6 +505,9 @@ pub const COUNTERS: (CounterDocs, CounterDocs) = (
     <Counts as crate::tracer::CounterSet>::DOCS,
 );
 
+/// Scenes of at least this many triangles get their min/max lists written in parallel.
+const PAR_PREPARE: usize = 1 << 16;
+
 impl Tracer for Dacrt {
     fn name(&self) -> &'static str {
         "dacrt"
@@ -551,12 +555,30 @@ impl Tracer for Dacrt {
                 let huge = self.cfg.huge_pages;
                 for v in &mut self.span {
                     reserve_exact_huge(v, n, huge);
+                    v.resize(n, [0.0; 2]);
                 }
-                for t in 0..n {
-                    let (mn, mx) = span_of(t);
-                    for k in 0..3 {
-                        self.span[k].push([mn[k], mx[k]]);
+                // In chunks of triangles, each writing its own stretch of the lists: in
+                // parallel for large scenes (small ones would spend more waking threads).
+                const CHUNK: usize = 1 << 14;
+                let [sx, sy, sz] = &mut self.span;
+                let fill = |(c, ((sx, sy), sz)): (usize, ((&mut [[f32; 2]], &mut [_]), &mut [_]))| {
+                    for j in 0..sx.len() {
+                        let (mn, mx) = span_of(c * CHUNK + j);
+                        (sx[j], sy[j], sz[j]) = ([mn.x, mx.x], [mn.y, mx.y], [mn.z, mx.z]);
                     }
+                };
+                if n >= PAR_PREPARE {
+                    sx.par_chunks_mut(CHUNK)
+                        .zip(sy.par_chunks_mut(CHUNK))
+                        .zip(sz.par_chunks_mut(CHUNK))
+                        .enumerate()
+                        .for_each(fill);
+                } else {
+                    sx.chunks_mut(CHUNK)
+                        .zip(sy.chunks_mut(CHUNK))
+                        .zip(sz.chunks_mut(CHUNK))
+                        .enumerate()
+                        .for_each(fill);
                 }
                 n
             }
@@ -564,13 +586,20 @@ impl Tracer for Dacrt {
         if written > 0 {
             self.top = OnceLock::new();
             // NaN-safe: `max` skips NaN; degenerate triangles' infinite spans are skipped.
-            self.scale = self
-                .span
-                .iter()
-                .flatten()
-                .flatten()
-                .filter(|v| v.is_finite())
-                .fold(0.0f32, |m, v| m.max(v.abs()));
+            // (The maximum of the same numbers in any order: the same for any thread count.)
+            let pair = |p: &[f32; 2]| {
+                p.iter()
+                    .filter(|v| v.is_finite())
+                    .fold(0.0f32, |m, v| m.max(v.abs()))
+            };
+            let largest = |s: &Vec<[f32; 2]>| {
+                if s.len() >= PAR_PREPARE {
+                    s.par_iter().map(pair).reduce(|| 0.0, f32::max)
+                } else {
+                    s.iter().map(pair).fold(0.0, f32::max)
+                }
+            };
+            self.scale = self.span.iter().map(largest).fold(0.0, f32::max);
         }
         self.stamp = scene.stamp();
         Ok(Stats::prepared(

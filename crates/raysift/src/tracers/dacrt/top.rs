@@ -27,8 +27,10 @@
 //! the leaves' lists sum to at most the root's), and the nodes exactly `4·⌈B / top_leaf⌉ + 1`
 //! of 16 bytes for that budget `B` (shared the same way: a subtree given fewer than three
 //! nodes is a leaf), so `4·(1 + g) + 64·(1 + g) / top_leaf` bytes per triangle: 12 at the
-//! defaults. The build also uses `4·T` of working indices, freed at its end. The depth is
-//! capped by `Config::max_depth`.
+//! defaults, and nothing else: the build works inside the lists (each subtree in the stretch
+//! of the budget it will own), so the two children of a large subtree are built at once on
+//! `rayon`'s threads, into the same tree whatever their number (BENCHMARKS.md, § DACRT: random
+//! and bounce rays). The depth is capped by `Config::max_depth`.
 
 use super::partition::{gather_block, partition_tris};
 use super::split::{choose_split, half, no_progress};
@@ -65,35 +67,35 @@ impl TopTree {
     /// The tree over the live triangles of `span` in `root`.
     pub(super) fn build(cfg: &Config, span: [&[[f32; 2]]; 3], root: Aabb) -> TopTree {
         let huge = cfg.huge_pages;
-        let mut idx = Vec::new();
-        reserve_exact_huge(&mut idx, span[0].len(), huge);
-        idx.extend(
+        let n = span[0].iter().filter(|s| s[0] <= s[1]).count();
+        let leaf = cfg.top_leaf.max(1);
+        let budget = ((1.0 + cfg.top_growth.max(0.0)) * n as f64) as usize;
+        let budget = budget.max(n);
+        let node_cap = 4 * budget.div_ceil(leaf) + 1;
+        let mut tree = TopTree {
+            root,
+            ..TopTree::default()
+        };
+        // The lists are also the build's working space: each subtree works in the stretch it
+        // will own (see `Builder::node`), so the build needs nothing beside the tree.
+        reserve_exact_huge(&mut tree.lists, budget, huge);
+        tree.lists.extend(
             span[0]
                 .iter()
                 .enumerate()
                 .filter(|(_, s)| s[0] <= s[1])
                 .map(|(t, _)| t as u32),
         );
-        let n = idx.len();
-        let leaf = cfg.top_leaf.max(1);
-        let budget = ((1.0 + cfg.top_growth.max(0.0)) * n as f64) as usize;
-        let budget = budget.max(n);
-        let depth_cap = cfg.max_depth;
-        let node_cap = 4 * budget.div_ceil(leaf) + 1;
-        let mut tree = TopTree {
-            root,
-            ..TopTree::default()
-        };
-        reserve_exact_huge(&mut tree.lists, budget, huge);
+        tree.lists.resize(budget, 0);
         reserve_exact_huge(&mut tree.nodes, node_cap, huge);
-        let mut b = Builder {
+        tree.nodes.resize(node_cap, Node::default());
+        let b = Builder {
             cfg,
             span,
             leaf,
-            depth_cap,
-            tree: &mut tree,
+            depth_cap: cfg.max_depth,
         };
-        b.node(&mut idx, n, root, 0, budget, node_cap);
+        tree.tests = b.node(&mut tree.nodes, 0, &mut tree.lists, 0, n, root, 0);
         tree
     }
 
@@ -103,77 +105,103 @@ impl TopTree {
     }
 }
 
+/// Subtrees of at least this many triangles build their two children in parallel (`rayon`;
+/// the same tree whatever the number of threads: only who builds it changes).
+const PAR_MIN: usize = 1 << 15;
+
 struct Builder<'b> {
     cfg: &'b Config,
     span: [&'b [[f32; 2]]; 3],
     leaf: usize,
     depth_cap: u32,
-    tree: &'b mut TopTree,
 }
 
 impl Builder<'_> {
-    /// The node of the triangles `idx[..nt]` in `cell`, with room for `budget` list entries
-    /// below it; returns its index. The prefix scheme of `Task::ray_rec`, without rays.
+    /// The subtree of the triangles `list[..nt]` in `cell`, written into `nodes` (its node
+    /// budget, `nodes[0]` itself, global index `node0`) and `list` (its list budget, global
+    /// offset `list0`); returns the triangle/box tests it spent. The prefix scheme of
+    /// `Task::ray_rec`, without rays.
+    ///
+    /// In place: the first child's list is the plane test's survivors `list[..nt0]`, and the
+    /// second child's (the first's rejects, then the survivors that also lie on its side) is
+    /// written at the start of its own budget `list[b0..]`, rejects first, moved right to end
+    /// at `b0 + nt1` (`b0 ≥ nt0` and `nt1 ≥ nt − nt0`, so that is past `nt`), and the two-sided
+    /// survivors before them (from `list[..nt0]` into `list[b0..]`: no overlap). Both
+    /// children then own disjoint stretches and can be built at once.
+    #[allow(clippy::too_many_arguments)]
     fn node(
-        &mut self,
-        idx: &mut [u32],
+        &self,
+        nodes: &mut [Node],
+        node0: usize,
+        list: &mut [u32],
+        list0: usize,
         nt: usize,
         cell: Aabb,
         depth: u32,
-        budget: usize,
-        nodes: usize,
-    ) -> u32 {
-        let me = self.tree.nodes.len() as u32;
-        self.tree.nodes.push(Node::default());
-        let split = (nt > self.leaf && depth < self.depth_cap && nodes >= 3)
-            .then(|| choose_split(self.cfg, self.span, &idx[..nt], &cell))
+    ) -> u64 {
+        let budget = list.len();
+        let split = (nt > self.leaf && depth < self.depth_cap && nodes.len() >= 3)
+            .then(|| choose_split(self.cfg, self.span, &list[..nt], &cell))
             .flatten();
         let Some((axis, split)) = split else {
-            return self.leaf(me, &idx[..nt]);
+            return self.leaf(nodes, list0, nt);
         };
-        let (nt0, other) = partition_tris(self.span[axis], &mut idx[..nt], split, true);
-        self.tree.tests += nt as u64;
-        if no_progress(nt, nt0, other) || nt0 + other > budget {
-            return self.leaf(me, &idx[..nt]);
+        let (nt0, nt1) = partition_tris(self.span[axis], &mut list[..nt], split, true);
+        if no_progress(nt, nt0, nt1) || nt0 + nt1 > budget {
+            return self.leaf(nodes, list0, nt);
         }
         // The spare budget shared in proportion to the children's triangles (both ≥ their
         // counts, summing to `budget`).
-        let spare = budget - nt0 - other;
-        let share = |x: usize| (x as u128 * nt0 as u128 / (nt0 + other) as u128) as usize;
+        let spare = budget - nt0 - nt1;
+        let share = |x: usize| (x as u128 * nt0 as u128 / (nt0 + nt1) as u128) as usize;
         let b0 = nt0 + share(spare);
         // The same for the nodes: this one, and at least one per child.
-        let n0 = 1 + share(nodes - 3);
-        let a = self.node(idx, nt0, half(&cell, axis, split, true), depth + 1, b0, n0);
-        let (k, _) = partition_tris(self.span[axis], &mut idx[..nt0], split, false);
-        self.tree.tests += nt0 as u64;
-        let nt1 = gather_block(idx, k, nt0, nt);
-        let b = self.node(
-            idx,
-            nt1,
-            half(&cell, axis, split, false),
-            depth + 1,
-            budget - b0,
-            nodes - 1 - n0,
-        );
-        self.tree.nodes[me as usize] = Node {
+        let n0 = 1 + share(nodes.len() - 3);
+        // The second child's list (see the doc): the rejects to the end of its stretch, then
+        // the two-sided survivors before them, in their order.
+        let rejects = nt - nt0;
+        let end = b0 + nt1;
+        list.copy_within(nt0..nt, end - rejects);
+        let mut w = b0;
+        for q in 0..nt0 {
+            let t = list[q];
+            // The high side's plane test (`partition_tris` with `low = false`).
+            if self.span[axis][t as usize][1] >= split {
+                list[w] = t;
+                w += 1;
+            }
+        }
+        debug_assert_eq!(w, end - rejects, "the second child's count");
+        let (me, below) = nodes.split_first_mut().expect("a node budget of at least 3");
+        let (nodes_a, nodes_b) = below.split_at_mut(n0);
+        let (list_a, list_b) = list.split_at_mut(b0);
+        let (a, b) = (node0 + 1, node0 + 1 + n0);
+        let (ca, cb) = (half(&cell, axis, split, true), half(&cell, axis, split, false));
+        let mut first = move || self.node(nodes_a, a, list_a, list0, nt0, ca, depth + 1);
+        let mut second = move || self.node(nodes_b, b, list_b, list0 + b0, nt1, cb, depth + 1);
+        let (ta, tb) = if nt >= PAR_MIN {
+            rayon::join(first, second)
+        } else {
+            (first(), second())
+        };
+        *me = Node {
             axis: axis as u32,
             split,
-            a,
-            b,
+            a: a as u32,
+            b: b as u32,
         };
-        me
+        // This node's plane test, and the second side's test of its survivors.
+        nt as u64 + nt0 as u64 + ta + tb
     }
 
-    fn leaf(&mut self, me: u32, ids: &[u32]) -> u32 {
-        let a = self.tree.lists.len() as u32;
-        self.tree.lists.extend_from_slice(ids);
-        self.tree.nodes[me as usize] = Node {
+    fn leaf(&self, nodes: &mut [Node], list0: usize, nt: usize) -> u64 {
+        nodes[0] = Node {
             axis: LEAF,
             split: 0.0,
-            a,
-            b: a + ids.len() as u32,
+            a: list0 as u32,
+            b: (list0 + nt) as u32,
         };
-        me
+        0
     }
 }
 
@@ -278,6 +306,8 @@ mod tests {
             (procedural::soup(3000, 7), 1, 0.0),
             (procedural::icosphere(1280), 4, 0.5),
             (procedural::icosphere(1280), 64, 3.0),
+            // Past `PAR_MIN`: the children of the upper nodes are built at once.
+            (procedural::soup(2 * PAR_MIN, 3), 256, 1.0),
         ] {
             let s = spans(&scene);
             let span = [&s[0][..], &s[1][..], &s[2][..]];
@@ -288,6 +318,12 @@ mod tests {
                 ..Config::default()
             };
             let tree = TopTree::build(&cfg, span, scene.bounds());
+            // The same tree on one thread as on several.
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let serial = one.install(|| TopTree::build(&cfg, span, scene.bounds()));
+            assert_eq!(format!("{:?}", serial.nodes), format!("{:?}", tree.nodes));
+            assert_eq!(serial.lists, tree.lists);
+            assert_eq!(serial.tests, tree.tests);
             let n = scene.len();
             let budget = ((1.0 + growth) * n as f64) as usize;
             assert!(tree.lists.len() <= budget);
