@@ -196,16 +196,8 @@ fn dacrt_memory_is_a_deterministic_linear_function() {
                 } else {
                     0
                 };
-                assert_eq!(
-                    c.intersect.0,
-                    want + top,
-                    "intersect {mode} tasks {tasks}"
-                );
-                assert_eq!(
-                    c.occluded.0,
-                    want + top,
-                    "occluded {mode} tasks {tasks}"
-                );
+                assert_eq!(c.intersect.0, want + top, "intersect {mode} tasks {tasks}");
+                assert_eq!(c.occluded.0, want + top, "occluded {mode} tasks {tasks}");
                 assert!(c.intersect.1 <= want + top && c.occluded.1 <= want + top);
                 // The buffers stay with the tracer: a second call of the same size allocates
                 // nothing, and the tracer holds the min/max lists, one call's buffers and the

@@ -367,7 +367,11 @@ mod tests {
             let others = b.hit_by_packed(&last);
             for j in 0..4 {
                 let w = if j == lane { want } else { others };
-                assert_eq!(bits >> j & 1 == 1, w, "case {n}, lane {j}: {b:?} o {o} d {d}");
+                assert_eq!(
+                    bits >> j & 1 == 1,
+                    w,
+                    "case {n}, lane {j}: {b:?} o {o} d {d}"
+                );
             }
             last = ray;
             if want {

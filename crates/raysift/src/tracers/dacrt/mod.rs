@@ -100,7 +100,10 @@
 //!   records (`RayRec`: origin, `tmin`, `1/d`, cut-off) swapped together with the ray ids, as
 //!   potato3d's `dacrt_simd` does, so the ray filter streams one record per ray instead of
 //!   gathering eight SoA arrays through an index; the ray and split-plane partitions are
-//!   branch-free Lomuto loops; leaves of at most 64 triangles gather them once into groups of
+//!   branch-free Lomuto loops (the ray partition decides four rays at a time,
+//!   [`crate::geom::Aabb::hit_by_packed4`]), and the leaves prefetch each ray's direction and
+//!   best hit a few rays ahead (BENCHMARKS.md, § DACRT: random and bounce rays); leaves of at
+//!   most 64 triangles gather them once into groups of
 //!   four and run the shared four-wide test ([`crate::geom::intersect_triangle4`], bit-equal
 //!   to the scalar one); larger leaves (few rays, many triangles) keep the scalar loop
 //!   (gathering in chunks for them measured slower; both in BENCHMARKS.md, § DACRT design
@@ -174,8 +177,8 @@
 //! culling allocate nothing. Batches without packets of at most `top_below` rays per triangle
 //! (the default modes' bounce, random and shadow rays up to `2·T` rays) add the top tree,
 //! built by the first such call after the scene changed and then held: `12·T` at the defaults
-//! (`4·(1 + top_growth)·T + 16·(4·⌈(1 + top_growth)·T / top_leaf⌉ + 1)`), and `4·T` more
-//! while it is built (see `top.rs`).
+//! (`4·(1 + top_growth)·T + 16·(4·⌈(1 + top_growth)·T / top_leaf⌉ + 1)`), nothing more while
+//! it is built (see `top.rs`).
 
 mod cone_rec;
 mod config;
@@ -205,9 +208,9 @@ use crate::tracer::{
 };
 use glam::{Vec3, Vec4};
 use order::View;
-use rayon::prelude::*;
 use packets::{PackedCone, Packets};
 use ray_rec::RayRec;
+use rayon::prelude::*;
 use scratch::{Scratch, MAX_POOLED};
 use std::sync::{Mutex, OnceLock};
 use top::TopTree;
@@ -561,7 +564,8 @@ impl Tracer for Dacrt {
                 // parallel for large scenes (small ones would spend more waking threads).
                 const CHUNK: usize = 1 << 14;
                 let [sx, sy, sz] = &mut self.span;
-                let fill = |(c, ((sx, sy), sz)): (usize, ((&mut [[f32; 2]], &mut [_]), &mut [_]))| {
+                type Stretch<'s> = &'s mut [[f32; 2]];
+                let fill = |(c, ((sx, sy), sz)): (usize, ((Stretch, Stretch), Stretch))| {
                     for j in 0..sx.len() {
                         let (mn, mx) = span_of(c * CHUNK + j);
                         (sx[j], sy[j], sz[j]) = ([mn.x, mx.x], [mn.y, mx.y], [mn.z, mx.z]);

@@ -172,11 +172,16 @@ impl Builder<'_> {
             }
         }
         debug_assert_eq!(w, end - rejects, "the second child's count");
-        let (me, below) = nodes.split_first_mut().expect("a node budget of at least 3");
+        let (me, below) = nodes
+            .split_first_mut()
+            .expect("a node budget of at least 3");
         let (nodes_a, nodes_b) = below.split_at_mut(n0);
         let (list_a, list_b) = list.split_at_mut(b0);
         let (a, b) = (node0 + 1, node0 + 1 + n0);
-        let (ca, cb) = (half(&cell, axis, split, true), half(&cell, axis, split, false));
+        let (ca, cb) = (
+            half(&cell, axis, split, true),
+            half(&cell, axis, split, false),
+        );
         let mut first = move || self.node(nodes_a, a, list_a, list0, nt0, ca, depth + 1);
         let mut second = move || self.node(nodes_b, b, list_b, list0 + b0, nt1, cb, depth + 1);
         let (ta, tb) = if nt >= PAR_MIN {
@@ -319,7 +324,10 @@ mod tests {
             };
             let tree = TopTree::build(&cfg, span, scene.bounds());
             // The same tree on one thread as on several.
-            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
             let serial = one.install(|| TopTree::build(&cfg, span, scene.bounds()));
             assert_eq!(format!("{:?}", serial.nodes), format!("{:?}", tree.nodes));
             assert_eq!(serial.lists, tree.lists);
