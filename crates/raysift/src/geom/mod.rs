@@ -12,6 +12,7 @@ pub mod conebox;
 pub mod lanes;
 pub mod light_space;
 pub mod projection;
+pub mod ray5d;
 pub mod shaft;
 pub mod shapes;
 pub mod slab;

@@ -8,13 +8,12 @@
 //! |---|---|---|
 //! | `mod.rs` | [`Dacrt5d`], `impl Tracer`, counters, memory | |
 //! | `config.rs` | [`Config`]: cull, stop, constants, presets | the post's choices, ours |
-//! | `bound.rs` | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a node's 5D box, the open frustum and the cone, their exact culls | Arvo–Kirk; the post's frustum |
+//! | `geom/ray5d.rs` (shared geometry) | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a group's 5D box, the open frustum and the cone, their exact culls, and their tests | Arvo–Kirk; the post's frustum |
 //! | `rec.rs` | the recursion: cull, cost stop or fixed limits, ray-space split, spatial split (front to back, early termination), naive leaves | the post's `DACRT`, termination criterion; ours |
 //! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the bundles' recursions, results | |
-//! | `tests.rs` | unit tests (culls against the shared test's rounding, classification) | |
 //!
 //! What implements which part of the post:
-//! - **5D classification** (`bound.rs`, `classify`): major axis = largest `|d|` (ties by strict
+//! - **5D classification** (`geom::ray5d::classify`): major axis = largest `|d|` (ties by strict
 //!   `>`: `|dx| = |dy|` goes to y), `u, v` = the minor components over `|d_major|`, in
 //!   [-1, 1]; each task sorts its rays into the six bundles in place (counting sort, no extra
 //!   buffer). Rays no bound can hold (negative or NaN `tmin`, zero or non-finite direction or
@@ -27,15 +26,15 @@
 //!   tenth of the spatial range" mixes units); the rays are partitioned in place at the middle
 //!   of that range (children are disjoint sub-ranges: nothing is allocated per node). Identical
 //!   rays (zero range) or a split that leaves a side empty make a leaf.
-//! - **Geometry culling** (`bound.rs`, `Task::cull`): each node filters its parent's triangle
+//! - **Geometry culling** (`geom::ray5d`, `Task::cull`): each node filters its parent's triangle
 //!   prefix in place (children are prefixes, as in `dacrt`) against its own bound:
 //!   `cull=frustum` (the post's open frustum: the 4 planes of the u/v bounds through the origin
 //!   box's corners with analytic normals, plus the near plane; no NaN normals for a flat u or v
 //!   range, and the near plane for every bundle, unlike the author's code) or `cull=cone`
 //!   (Arvo–Kirk's cone, apex at the origin box's centre swept by its bounding ball, as the
 //!   author's `SphereCone`). Both test the triangle's bounding box, conservatively against the
-//!   shared test's rounding: the argument is in `bound.rs`; the test that would catch a cull
-//!   that is not conservative is `tests.rs`' `culls_keep_every_grazing_hit`.
+//!   shared test's rounding: the argument is in `geom::ray5d`; the test that would catch a cull
+//!   that is not conservative is its `culls_keep_every_grazing_hit`.
 //! - **Stop** (`Config::stop`): the post's cost rule, leaf when `R·G < C_r·R + C_g·G` (16/16,
 //!   the author's values), or Mora's fixed limits (`R < 20` or `G < 16`); a depth cap (64).
 //! - **Leaves**: naive, every ray against every triangle (groups of four through the shared
@@ -63,12 +62,9 @@
 //! second call of the same size allocates nothing). So `a = 24 + 4K` bytes per triangle,
 //! `b = 24` per ray; `tests/dacrt5d.rs` checks it with a counting allocator.
 
-mod bound;
 mod config;
 mod rec;
 mod run;
-#[cfg(test)]
-mod tests;
 
 pub use config::{Config, Cull, Stop, OPTION_DOCS, PRESETS};
 
@@ -79,7 +75,7 @@ use crate::scene::{Scene, Stamp};
 use crate::tracer::{
     par_occlusion_chunks, par_ray_chunks, CounterDocs, RayCost, Stats, Tally, Tracer,
 };
-use bound::Rec;
+use rec::Rec;
 use std::sync::Mutex;
 
 /// Task slots kept between calls.

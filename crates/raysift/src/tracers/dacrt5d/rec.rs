@@ -3,13 +3,22 @@
 //! 5D, or (the hybrid, ours) splits its triangles in space along the major axis, near half
 //! first, with exact early termination; naive leaves.
 
-use super::bound::{axes, Bound5, Cone5, Frustum, Rec, DELTA};
 use super::{Config, Counts, Cull, Stop};
+use crate::geom::ray5d::{axes, Bound5, Cone5, Frustum5, DELTA};
 use crate::geom::{intersect_triangle, intersect_triangle4, Tri4};
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
 use crate::tracers::dacrt::partition::gather_block;
+
+/// A ray in the recursion (24 bytes, swapped with its id): its 5D point `(x, y, z, u, v)`
+/// ([`crate::geom::ray5d::classify`]) and its index in the task's share.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub(super) struct Rec {
+    pub(super) p: [f32; 5],
+    pub(super) id: u32,
+}
 
 /// Leaves with at most this many triangles gather them into groups of four.
 const LEAF4_MAX: usize = 64;
@@ -52,7 +61,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         bound: Option<Bound5>,
     ) {
         self.st.nodes += 1;
-        let b = bound.unwrap_or_else(|| Bound5::of(&self.recs[r0..r1]));
+        let b = bound.unwrap_or_else(|| Bound5::of(self.recs[r0..r1].iter().map(|r| &r.p)));
         let s_all = self.scale.max(b.origin_scale());
         let nt = if bound.is_some() {
             ntp
@@ -106,7 +115,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         };
         match self.cfg.cull {
             Cull::Frustum => {
-                let f = Frustum::new(g, b, s_all);
+                let f = Frustum5::new(g, b, s_all);
                 run(&|lo, hi| f.keeps(lo, hi));
                 self.st.frustum_tests += ntp as u64;
             }
@@ -178,7 +187,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// near end `key = s·(near corner)_k` is at most the plane `P` (the keys' mean) are traced
     /// first with every ray; then a ray leaves when its z-buffer (best hit, or `tmax`) lies
     /// before `P` along `s·x_k` by the rounding bound: a far triangle's every gated hit point
-    /// has `s·x_k ≥ key − δ > P − δ` (`bound.rs`), and a hit at `t' ≤ z` on the ray would have
+    /// has `s·x_k ≥ key − δ > P − δ` (`geom::ray5d`), and a hit at `t' ≤ z` on the ray would have
     /// `s·x_k = s·o_k + t'·|d_k| ≤ s·o_k + z·|d_k|` (`t' ≥ 0`). False when `P` separates nothing.
     #[allow(clippy::too_many_arguments)]
     fn spatial_split(

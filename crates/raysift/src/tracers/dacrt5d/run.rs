@@ -1,9 +1,9 @@
 //! One task: its share of the rays classified into the bundles (a counting sort into the
 //! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
 
-use super::bound::{classify, Rec, GROUPS, UNBOUNDED};
-use super::rec::Task;
+use super::rec::{Rec, Task};
 use super::{Counts, Dacrt5d, Scratch};
+use crate::geom::ray5d::{classify, GROUPS, UNBOUNDED};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::Scene;
 use crate::tracer::{CostMut, Tally};

@@ -1,6 +1,7 @@
-//! Arvo–Kirk's 5D ray classification and the two bounds the post compares: a node's rays as a
-//! 5D box `(x, y, z, u, v)` within one of six major-axis bundles, turned into the post's open
-//! frustum (5 planes) or into Arvo–Kirk's cone, and the conservative triangle-box culls.
+//! Arvo–Kirk's 5D ray classification (1987) and the two bounds Hoedt's "DACRT over 5D ray
+//! hierarchies" compares (`tracers::dacrt5d`): a group of rays as a 5D box `(x, y, z, u, v)`
+//! within one of six major-axis bundles, turned into the post's open frustum of 5 planes
+//! ([`Frustum5`]) or into Arvo–Kirk's cone ([`Cone5`]), and their conservative box culls.
 //!
 //! **Why the culls are exact** (keep every triangle a ray can hit by the shared test). A hit of
 //! the shared test ([`crate::geom::intersect_triangle`]) has its `t` inside the f32 slab
@@ -30,40 +31,32 @@
 //!
 //! `S` is a node-wide bound (not per triangle), so a scene far from the origin culls less,
 //! never wrongly. Non-finite values make the comparisons false: nothing is culled.
-//! `tests.rs` checks both culls against the shared test on rays made to graze triangle boxes.
+//! The test `culls_keep_every_grazing_hit` (below) checks both culls against the shared test on
+//! rays made to graze triangle boxes.
 
 use glam::Vec3;
 
 /// The hit point's distance bound from its triangle's box, relative to `S` (see the module doc).
-pub(super) const DELTA: f32 = 1.0 / 131072.0;
+pub const DELTA: f32 = 1.0 / 131072.0;
 /// The frustum's margin, relative to `S`.
 const FRUSTUM_MARGIN: f32 = 1.0 / 16384.0;
 /// The cone's margin, relative to `S`.
 const CONE_MARGIN: f32 = 1.0 / 8192.0;
 
-/// Ray groups per task: six major-axis bundles (`2k` for `+k`, `2k + 1` for `−k`) and one of
+/// Ray groups: six major-axis bundles (`2k` for `+k`, `2k + 1` for `−k`) and one of
 /// rays no bound holds (negative or NaN `tmin`, a zero or non-finite direction, a non-finite
 /// origin), traced against every triangle.
-pub(super) const GROUPS: usize = 7;
+pub const GROUPS: usize = 7;
 /// The unbounded group.
-pub(super) const UNBOUNDED: usize = 6;
-
-/// A ray in the recursion (24 bytes, swapped with its id): its 5D point `(x, y, z, u, v)` and
-/// its local index.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
-pub(super) struct Rec {
-    pub(super) p: [f32; 5],
-    pub(super) id: u32,
-}
+pub const UNBOUNDED: usize = 6;
 
 /// The axes of bundle `g`: major `k`, sign `s`, minors `i, j` (u is `d_i/|d_k|`, v `d_j/|d_k|`).
 #[inline(always)]
-pub(super) fn axes(g: usize) -> (usize, f32, usize, usize) {
+pub fn axes(g: usize) -> (usize, f32, usize, usize) {
     let k = g / 2;
     (
         k,
-        if g % 2 == 0 { 1.0 } else { -1.0 },
+        if g.is_multiple_of(2) { 1.0 } else { -1.0 },
         (k + 1) % 3,
         (k + 2) % 3,
     )
@@ -73,7 +66,7 @@ pub(super) fn axes(g: usize) -> (usize, f32, usize, usize) {
 /// largest `|d|` component with ties by strict `>` (x only if larger than both, else y if larger
 /// than z, else z), so `|dx| = |dy|` goes to y and `u = dx/|dy| = ±1`.
 #[inline(always)]
-pub(super) fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
+pub fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
     let a = d.abs();
     let k = if a.x > a.y && a.x > a.z {
         0
@@ -85,11 +78,9 @@ pub(super) fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
     let (i, j) = ((k + 1) % 3, (k + 2) % 3);
     let (u, v) = (d[i] / a[k], d[j] / a[k]);
     let p = [o.x, o.y, o.z, u, v];
-    // `!(x >= 0)` also catches NaN.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    let bad =
-        !(tmin >= 0.0) || !(a[k] > 0.0) || !(u.is_finite() && v.is_finite()) || !o.is_finite();
-    if bad {
+    // Written positively so that NaN (every comparison false) lands in the unbounded group.
+    let good = tmin >= 0.0 && a[k] > 0.0 && u.is_finite() && v.is_finite() && o.is_finite();
+    if !good {
         (UNBOUNDED, p)
     } else {
         (2 * k + (d[k] < 0.0) as usize, p)
@@ -98,47 +89,50 @@ pub(super) fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
 
 /// `x` raised past the exact slope its rounded division stands for.
 #[inline]
-pub(super) fn widen_up(x: f32) -> f32 {
+pub fn widen_up(x: f32) -> f32 {
     x + x.abs() * f32::EPSILON + f32::MIN_POSITIVE
 }
 
 /// `x` lowered past the exact slope its rounded division stands for.
 #[inline]
-pub(super) fn widen_down(x: f32) -> f32 {
+pub fn widen_down(x: f32) -> f32 {
     x - x.abs() * f32::EPSILON - f32::MIN_POSITIVE
 }
 
 /// The 5D box of a node's rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Bound5 {
-    pub(super) lo: [f32; 5],
-    pub(super) hi: [f32; 5],
+pub struct Bound5 {
+    /// Lower corner: origin on the two plane axes, then the two slopes (see [`classify`]).
+    pub lo: [f32; 5],
+    /// Upper corner, in the same coordinates.
+    pub hi: [f32; 5],
 }
 
 impl Bound5 {
-    pub(super) fn of(recs: &[Rec]) -> Self {
+    /// The box of the points `ps` (empty: `lo = +inf, hi = -inf`).
+    pub fn of<'a>(ps: impl IntoIterator<Item = &'a [f32; 5]>) -> Self {
         let mut b = Bound5 {
             lo: [f32::INFINITY; 5],
             hi: [f32::NEG_INFINITY; 5],
         };
-        for r in recs {
-            for d in 0..5 {
-                b.lo[d] = b.lo[d].min(r.p[d]);
-                b.hi[d] = b.hi[d].max(r.p[d]);
+        for p in ps {
+            for (d, &x) in p.iter().enumerate() {
+                b.lo[d] = b.lo[d].min(x);
+                b.hi[d] = b.hi[d].max(x);
             }
         }
         b
     }
 
     /// The largest coordinate magnitude of the origin box.
-    pub(super) fn origin_scale(&self) -> f32 {
+    pub fn origin_scale(&self) -> f32 {
         (0..3).fold(0.0f32, |m, d| m.max(self.lo[d].abs()).max(self.hi[d].abs()))
     }
 }
 
 /// A plane `α·x_m + β·x_k ≤ c` of the open frustum, with the margin folded into `c`.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Plane5 {
+pub struct Plane5 {
     m: usize,
     alpha: f32,
     beta: f32,
@@ -147,14 +141,14 @@ pub(super) struct Plane5 {
 
 /// The post's open frustum of a node: 4 side planes and the near plane.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Frustum {
+pub struct Frustum5 {
     k: usize,
     planes: [Plane5; 5],
 }
 
-impl Frustum {
+impl Frustum5 {
     /// The frustum of bundle `g`'s node bound `b`; `s_all` is the node's `S`.
-    pub(super) fn new(g: usize, b: &Bound5, s_all: f32) -> Self {
+    pub fn new(g: usize, b: &Bound5, s_all: f32) -> Self {
         let (k, s, i, j) = axes(g);
         let margin = FRUSTUM_MARGIN * s_all;
         let plane = |m: usize, alpha: f32, beta: f32| {
@@ -170,7 +164,7 @@ impl Frustum {
         };
         let (uh, ul) = (widen_up(b.hi[3]), widen_down(b.lo[3]));
         let (vh, vl) = (widen_up(b.hi[4]), widen_down(b.lo[4]));
-        Frustum {
+        Frustum5 {
             k,
             planes: [
                 plane(i, 1.0, -uh * s),
@@ -184,7 +178,7 @@ impl Frustum {
 
     /// False when the box `[lo, hi]` lies wholly outside one plane (by the margin).
     #[inline(always)]
-    pub(super) fn keeps(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
+    pub fn keeps(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
         let k = self.k;
         let mut out = false;
         for p in &self.planes {
@@ -198,7 +192,7 @@ impl Frustum {
 
 /// Arvo–Kirk's cone of a node, swept by the origin box's bounding ball.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Cone5 {
+pub struct Cone5 {
     apex: Vec3,
     axis: Vec3,
     cos: f32,
@@ -208,7 +202,8 @@ pub(super) struct Cone5 {
 }
 
 impl Cone5 {
-    pub(super) fn new(g: usize, b: &Bound5, s_all: f32) -> Self {
+    /// The cone of bundle `g`'s node bound `b`; `s_all` is the node's `S` (the margin).
+    pub fn new(g: usize, b: &Bound5, s_all: f32) -> Self {
         let (k, s, i, j) = axes(g);
         let dir = |u: f64, v: f64| {
             let mut d = [0.0f64; 3];
@@ -247,7 +242,7 @@ impl Cone5 {
 
     /// False when the box `[lo, hi]`'s bounding ball lies outside the swept cone (by the margin).
     #[inline(always)]
-    pub(super) fn keeps(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
+    pub fn keeps(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
         let (lo, hi) = (Vec3::from_array(*lo), Vec3::from_array(*hi));
         let c = (lo + hi) * 0.5;
         let rt = (hi - lo).length() * 0.5;
@@ -264,5 +259,146 @@ impl Cone5 {
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
         let keep = !(dist > self.reach + rt);
         keep
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::intersect_triangle;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn classification_by_strict_major_axis() {
+        let o = Vec3::ZERO;
+        // |dx| = |dy|: y by the strict `>`; u = dz/|dy|, v = dx/|dy| (minors k+1, k+2).
+        let (g, p) = classify(o, Vec3::new(-2.0, 2.0, 1.0), 0.0);
+        assert_eq!((g, p[3], p[4]), (2, 0.5, -1.0));
+        let (g, p) = classify(o, Vec3::new(0.0, -0.0, -3.0), 0.0);
+        assert_eq!((g, p[3], p[4]), (5, 0.0, -0.0));
+        assert_eq!(classify(o, Vec3::new(1.0, 0.5, 0.5), 0.0).0, 0);
+        assert_eq!(classify(o, Vec3::ZERO, 0.0).0, UNBOUNDED);
+        assert_eq!(classify(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0).0, UNBOUNDED);
+        assert_eq!(classify(o, Vec3::X, -1.0).0, UNBOUNDED);
+        assert_eq!(classify(o, Vec3::X, f32::NAN).0, UNBOUNDED);
+        assert_eq!(
+            classify(Vec3::splat(f32::INFINITY), Vec3::X, 0.0).0,
+            UNBOUNDED
+        );
+    }
+
+    /// Triangles in axis planes and general ones far from the origin, and rays aimed at points on
+    /// and near them from far away (the gate moves their `t` onto flat boxes): every ray the shared
+    /// test hits must keep its triangle through both culls, with the ray alone as its node (the
+    /// tightest bound: a zero-width frustum, a zero-angle cone) and with a few neighbours. Red when
+    /// the margins or the slope widening are removed; the culls must also drop most triangles no
+    /// ray of the node can reach (checked, so the test is not vacuous).
+    #[test]
+    fn culls_keep_every_grazing_hit() {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+        let (mut hits, mut culled, mut far) = (0, 0, 0);
+        for case in 0..20_000 {
+            let scale = 10f32.powi(rng.gen_range(-2..4));
+            let c = Vec3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            ) * scale;
+            let e = |rng: &mut rand_pcg::Pcg64Mcg| {
+                Vec3::new(
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                ) * scale
+                    * 0.1
+            };
+            let (mut a, mut b, mut cc) = (c + e(&mut rng), c + e(&mut rng), c + e(&mut rng));
+            if case % 2 == 0 {
+                // An axis plane: a flat box.
+                let ax = rng.gen_range(0..3);
+                (b[ax], cc[ax]) = (a[ax], a[ax]);
+            }
+            // A point on the triangle, often on an edge or a vertex.
+            let (mut s, mut t) = (rng.gen::<f32>(), rng.gen::<f32>());
+            if s + t > 1.0 {
+                (s, t) = (1.0 - s, 1.0 - t);
+            }
+            match case % 5 {
+                0 => t = 0.0,
+                1 => (s, t) = (0.0, 0.0),
+                _ => {}
+            }
+            let target = a + (b - a) * s + (cc - a) * t;
+            let dist = scale * 10f32.powi(rng.gen_range(0..3));
+            let mut dir = Vec3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            );
+            if case % 7 == 0 {
+                // Grazing: nearly in the triangle's plane.
+                let n = (b - a).cross(cc - a).normalize_or(Vec3::Z);
+                dir = dir.reject_from(n) + n * 1e-4;
+            }
+            let dir = dir.normalize_or(Vec3::X);
+            let o = target - dir * dist;
+            if case % 3 == 0 {
+                std::mem::swap(&mut a, &mut b);
+            }
+            let lo = a.min(b).min(cc).to_array();
+            let hi = a.max(b).max(cc).to_array();
+            let Some(_) = intersect_triangle(o, dir, a, b, cc, 0.0, f32::INFINITY) else {
+                continue;
+            };
+            hits += 1;
+            let (g, p) = classify(o, dir, 0.0);
+            assert!(g < UNBOUNDED);
+            let s_all = o
+                .abs()
+                .max_element()
+                .max(Vec3::from(lo).abs().max_element())
+                .max(Vec3::from(hi).abs().max_element());
+            let mut pts = vec![p];
+            for k in 0..=(case % 3) {
+                let b1 = Bound5::of(&pts);
+                assert!(
+                    Frustum5::new(g, &b1, s_all).keeps(&lo, &hi),
+                    "frustum lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}"
+                );
+                assert!(
+                    Cone5::new(g, &b1, s_all).keeps(&lo, &hi),
+                    "cone lost a hit: case {case}, {k} neighbours, {o:?} {dir:?}"
+                );
+                // A neighbour in the same bundle.
+                let d2 = (dir
+                    + Vec3::new(
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                    ) * 0.01)
+                    .normalize();
+                let (g2, p2) = classify(o + e(&mut rng) * 0.01, d2, 0.0);
+                if g2 == g {
+                    pts.push(p2);
+                }
+            }
+            // The same triangle moved away sideways (perpendicular to the ray by 2 sizes):
+            // mostly culled by the single ray's frustum and cone.
+            let side = dir.any_orthonormal_vector() * scale * 2.0;
+            let (lo2, hi2) = (
+                (Vec3::from(lo) + side).to_array(),
+                (Vec3::from(hi) + side).to_array(),
+            );
+            let b1 = Bound5::of(&pts[..1]);
+            far += 1;
+            culled += (!Frustum5::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
+            culled += (!Cone5::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
+        }
+        assert!(hits > 5_000, "{hits}");
+        assert!(
+            culled as f64 > 1.8 * far as f64,
+            "culls too weak: {culled} of {}",
+            2 * far
+        );
     }
 }
