@@ -152,8 +152,26 @@ fn stats(s: &Scene, rays: &RayBatch, kv: &[(&str, &str)]) -> Stats {
 }
 
 /// Each option does what it says in the counters: the chosen cull runs (and culls: fewer
-/// ray/triangle tests than naive's R·T), spatial splits terminate rays early and only when on,
-/// the fixed stop differs from the cost stop.
+/// ray/triangle tests than naive's R·T), spatial splits (box splits, or major-axis cuts that
+/// terminate rays early) happen only when on, the fixed stop differs from the cost stop.
+/// Random rays (origins all over the scene): box splits bound them from their entry points into
+/// each child's box, and the leaves test far fewer pairs than with major-axis cuts, where a
+/// node of 16 rays or fewer is a leaf with all its triangles.
+#[test]
+fn box_splits_clip_incoherent_rays() {
+    let s = procedural::icosphere(5120);
+    let rays = random_in_box(&s.bounds(), 4000, 3);
+    let b = stats(&s, &rays, &[]);
+    let m = stats(&s, &rays, &[("space", "major")]);
+    assert!(b.work.get("clips") > 0, "{:?}", b.work);
+    assert!(
+        b.work.get("ray_tri") * 5 < m.work.get("ray_tri"),
+        "box {} vs major {}",
+        b.work.get("ray_tri"),
+        m.work.get("ray_tri")
+    );
+}
+
 #[test]
 fn options_show_in_the_counters() {
     let s = procedural::icosphere(5120);
@@ -167,15 +185,29 @@ fn options_show_in_the_counters() {
         assert!(st.work.get("ray_tri") * 20 < n * t, "{:?}", st.work);
         assert!(st.work.get("surv_d0") < 2 * t);
     }
+    // The default hybrid splits boxes and drops rays that miss a child's box; rays from one
+    // point keep their apex (no clipped bound).
     assert!(
-        f.work.get("spatial_splits") > 0 && f.work.get("terminated") > 0,
+        f.work.get("box_splits") > 0 && f.work.get("clipped_out") > 0,
         "{:?}",
         f.work
     );
+    assert_eq!((f.work.get("spatial_splits"), f.work.get("clips")), (0, 0));
+    let major = stats(&s, &cam, &[("space", "major")]);
+    assert!(
+        major.work.get("spatial_splits") > 0 && major.work.get("terminated") > 0,
+        "{:?}",
+        major.work
+    );
+    assert_eq!(major.work.get("box_splits"), 0);
     let off = stats(&s, &cam, &[("spatial", "false")]);
     assert_eq!(
-        (off.work.get("spatial_splits"), off.work.get("terminated")),
-        (0, 0)
+        (
+            off.work.get("spatial_splits"),
+            off.work.get("terminated"),
+            off.work.get("box_splits")
+        ),
+        (0, 0, 0)
     );
     assert!(off.work.get("ray_splits") > 0);
     let fixed = stats(&s, &cam, &[("stop", "fixed")]);
@@ -213,7 +245,7 @@ fn measure(f: impl FnOnce()) -> usize {
     TOTAL.load(Relaxed) - t0
 }
 
-/// Prepare allocates `24·T`; a first call `4·T·K + 24·R` (K tasks), whatever the scene's shape,
+/// Prepare allocates `24·T`; a first call `4·T·K + 28·R` (K tasks), whatever the scene's shape,
 /// the rays and the options; a second call nothing; `bytes()` reports the sum.
 #[test]
 fn memory_is_a_deterministic_linear_function() {
@@ -264,9 +296,9 @@ fn memory_is_a_deterministic_linear_function() {
                 }
                 let [prepare, first, again, held] = m;
                 assert_eq!(prepare, 24 * t, "{kv:?}");
-                assert_eq!(first, 4 * t * tasks + 24 * r, "{kv:?} tasks {tasks}");
+                assert_eq!(first, 4 * t * tasks + 28 * r, "{kv:?} tasks {tasks}");
                 assert_eq!(again, 0, "{kv:?}");
-                assert_eq!(held, 24 * t + 4 * t * tasks + 24 * r);
+                assert_eq!(held, 24 * t + 4 * t * tasks + 28 * r);
             }
         }
     }

@@ -29,6 +29,17 @@
 //!   rounding of `c_T`, `r_T`, the axis and `cos θ, sin θ`, each a few `ε·S` or `2^-20·|w|`,
 //!   `|w| ≤ 2S`) never drops a triangle with a hit.
 //!
+//! **Clipped origins** ([`clip`]). A node whose triangles all lie in a box `B` (their union)
+//! may bound its rays from their entry into `B` instead of their origins: the gate puts every
+//! hit's `t` in the slab interval of its triangle's box, which lies inside `B`'s (the slab test
+//! is monotone in the box: `geom::triangle`), so `t ≥ t0`, the entry of `B`'s interval, and every
+//! argument above holds with `o + t0·d` for `o` (`h(o + t·d) ≤ h(o + t0·d)` for `t ≥ t0`). The
+//! stored point `o' = fl(o + fl(t0·d))` is off the exact one by at most `2ε·S` per coordinate
+//! when `S` covers `|o|` and `|o'|` (so a node's `S` covers its rays' *original* origins too):
+//! `(|α| + |β|)·2ε·S ≤ 2^-20·S` more for the frustum and `√3·2ε·S` for the cone, both inside
+//! their margins. A ray whose interval in `B` is empty (clipped to `[tmin, best]`) has no hit in
+//! the node closer than its best (ties included: the interval is inclusive) and leaves it.
+//!
 //! `S` is a node-wide bound (not per triangle), so a scene far from the origin culls less,
 //! never wrongly. Non-finite values make the comparisons false: nothing is culled.
 //! The test `culls_keep_every_grazing_hit` (below) checks both culls against the shared test on
@@ -87,6 +98,18 @@ pub fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
     }
 }
 
+/// The origin of the ray `o + t·d` moved to its entry into the box `[lo, hi]` (the shared slab
+/// test's interval clipped to `[tmin, tmax]`, [`crate::geom::SlabRay::interval`]), or `None`
+/// when that interval is empty: no hit of the shared test on a triangle whose box lies in
+/// `[lo, hi]` has its `t` before the returned point or outside `[tmin, tmax]` (module doc,
+/// "Clipped origins").
+#[inline(always)]
+pub fn clip(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Option<Vec3> {
+    let (t0, _) = crate::geom::SlabRay::new(o, d).interval(lo, hi, tmin, tmax)?;
+    // `t0 < 0` only from a negative `tmin` (unbounded group, never clipped) or a lowered 0.
+    Some(if t0 > 0.0 { o + d * t0 } else { o })
+}
+
 /// `x` raised past the exact slope its rounded division stands for.
 #[inline]
 pub fn widen_up(x: f32) -> f32 {
@@ -111,17 +134,31 @@ pub struct Bound5 {
 impl Bound5 {
     /// The box of the points `ps` (empty: `lo = +inf, hi = -inf`).
     pub fn of<'a>(ps: impl IntoIterator<Item = &'a [f32; 5]>) -> Self {
-        let mut b = Bound5 {
-            lo: [f32::INFINITY; 5],
-            hi: [f32::NEG_INFINITY; 5],
-        };
+        let mut b = Self::EMPTY;
         for p in ps {
-            for (d, &x) in p.iter().enumerate() {
-                b.lo[d] = b.lo[d].min(x);
-                b.hi[d] = b.hi[d].max(x);
-            }
+            b.add(p);
         }
         b
+    }
+
+    /// No points.
+    pub const EMPTY: Bound5 = Bound5 {
+        lo: [f32::INFINITY; 5],
+        hi: [f32::NEG_INFINITY; 5],
+    };
+
+    /// Grows the box to hold `p`.
+    #[inline(always)]
+    pub fn add(&mut self, p: &[f32; 5]) {
+        for (d, &x) in p.iter().enumerate() {
+            self.lo[d] = self.lo[d].min(x);
+            self.hi[d] = self.hi[d].max(x);
+        }
+    }
+
+    /// The sum of the origin box's three extents.
+    pub fn origin_extent(&self) -> f32 {
+        (0..3).map(|d| self.hi[d] - self.lo[d]).sum()
     }
 
     /// The largest coordinate magnitude of the origin box.
@@ -292,11 +329,12 @@ mod tests {
     /// test hits must keep its triangle through both culls, with the ray alone as its node (the
     /// tightest bound: a zero-width frustum, a zero-angle cone) and with a few neighbours. Red when
     /// the margins or the slope widening are removed; the culls must also drop most triangles no
-    /// ray of the node can reach (checked, so the test is not vacuous).
+    /// ray of the node can reach (checked, so the test is not vacuous). The ray clipped to a
+    /// box around the triangle ([`clip`]) must keep it too.
     #[test]
     fn culls_keep_every_grazing_hit() {
         let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
-        let (mut hits, mut culled, mut far) = (0, 0, 0);
+        let (mut hits, mut culled, mut far, mut clipped) = (0, 0, 0, 0);
         for case in 0..20_000 {
             let scale = 10f32.powi(rng.gen_range(-2..4));
             let c = Vec3::new(
@@ -382,6 +420,26 @@ mod tests {
                     pts.push(p2);
                 }
             }
+            // Clipped to a box holding the triangle's (and a random neighbour's): the frustum
+            // and the cone from the ray's entry point must keep it too.
+            let other = c + e(&mut rng) * 5.0;
+            let (blo, bhi) = (
+                Vec3::from(lo).min(other),
+                Vec3::from(hi).max(other + e(&mut rng).abs()),
+            );
+            let oc = clip(o, dir, blo, bhi, 0.0, f32::INFINITY).expect("the hit is in the box");
+            clipped += (oc != o) as u32;
+            let (_, pc) = classify(oc, dir, 0.0);
+            let bc = Bound5::of([&pc]);
+            let sc = s_all.max(oc.abs().max_element());
+            assert!(
+                Frustum5::new(g, &bc, sc).keeps(&lo, &hi),
+                "clipped frustum lost a hit: case {case}, {o:?} {dir:?}"
+            );
+            assert!(
+                Cone5::new(g, &bc, sc).keeps(&lo, &hi),
+                "clipped cone lost a hit: case {case}, {o:?} {dir:?}"
+            );
             // The same triangle moved away sideways (perpendicular to the ray by 2 sizes):
             // mostly culled by the single ray's frustum and cone.
             let side = dir.any_orthonormal_vector() * scale * 2.0;
@@ -395,6 +453,7 @@ mod tests {
             culled += (!Cone5::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
         }
         assert!(hits > 5_000, "{hits}");
+        assert!(clipped > hits / 2, "clips that moved the origin: {clipped} of {hits}");
         assert!(
             culled as f64 > 1.8 * far as f64,
             "culls too weak: {culled} of {}",

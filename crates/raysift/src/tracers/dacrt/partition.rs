@@ -122,7 +122,7 @@ const SPLIT_PREFETCH: usize = 128;
 /// tile leaves faster: measured in BENCHMARKS.md, § DACRT design measurements). No effect on
 /// any result.
 #[inline(always)]
-pub(super) fn prefetch<T>(v: &[T], i: usize) {
+pub(crate) fn prefetch<T>(v: &[T], i: usize) {
     #[cfg(target_arch = "x86_64")]
     if i < v.len() {
         // SAFETY: `_mm_prefetch` is a cache hint: it never dereferences the pointer for the

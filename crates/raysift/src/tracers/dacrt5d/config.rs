@@ -28,6 +28,22 @@ pub enum Stop {
     Fixed,
 }
 
+/// How the hybrid splits a node in space (where its triangles outnumber its rays).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Space {
+    /// An object split of the triangles on the longest axis of their centroids (children with
+    /// disjoint triangles, BVH-like, built on the fly); each child keeps the rays that enter its
+    /// triangles' box before their best hit, bounds them from that entry point (clipped
+    /// origins: `geom::ray5d::clip`) and culls again. Near child first.
+    #[default]
+    Box,
+    /// The first hybrid: a cut along the bundle's major axis at the mean of the triangles' near
+    /// ends; every ray goes through the near half, the rays whose hit lies before the cut
+    /// leave, the rest take the far half.
+    Major,
+}
+
 /// Options (`key=value` on the command line).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
@@ -56,6 +72,13 @@ pub struct Config {
     pub spatial: bool,
     /// See `spatial`. Default 2.
     pub spatial_ratio: f32,
+    /// The spatial split: `box` (object split with ray clipping, re-culled children) or
+    /// `major` (the major-axis cut with early termination). Default `box`.
+    pub space: Space,
+    /// With `space=box`: a node the stop rule makes a leaf is split in space instead while it
+    /// holds more than this many triangles (the post's rule makes every node of 16 rays or
+    /// fewer a leaf, however many triangles it has). Default 32.
+    pub leaf_tris: usize,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -75,6 +98,8 @@ impl Default for Config {
             dir_weight: 1.0,
             spatial: true,
             spatial_ratio: 2.0,
+            space: Space::Box,
+            leaf_tris: 32,
             max_depth: 64,
             tasks: 0,
         }
@@ -92,12 +117,15 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "dir_weight", doc: "weight of a u/v range against a position range over the scene's extent, for the split dimension" },
     OptionDoc { key: "spatial", doc: "hybrid: spatial splits along the major axis (front to back, early termination) where triangles outnumber rays" },
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
+    OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
+    OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
     OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
 ];
 
 /// Configurations the conformance suite checks besides the defaults: both culls, both stops,
-/// deep recursions (tiny limits), ray splits only, spatial splits everywhere, positions only.
+/// deep recursions (tiny limits), ray splits only, spatial splits everywhere (box and
+/// major-axis), box splits down to single triangles, positions only.
 pub const PRESETS: &[Preset] = &[
     Preset {
         name: "frustum",
@@ -145,6 +173,24 @@ pub const PRESETS: &[Preset] = &[
             ("spatial_ratio", "0"),
             ("tasks", "2"),
         ],
+    },
+    Preset {
+        name: "major-axis cuts, frustum",
+        opts: &[("space", "major"), ("tasks", "2")],
+    },
+    Preset {
+        name: "major-axis cuts everywhere, cone, tiny",
+        opts: &[
+            ("space", "major"),
+            ("cull", "cone"),
+            ("c_r", "1"),
+            ("c_g", "1"),
+            ("spatial_ratio", "0"),
+        ],
+    },
+    Preset {
+        name: "box splits down to one triangle",
+        opts: &[("leaf_tris", "1"), ("spatial_ratio", "0.5"), ("tasks", "3")],
     },
     Preset {
         name: "frustum, spatial everywhere, positions only, shallow",

@@ -66,7 +66,7 @@ mod config;
 mod rec;
 mod run;
 
-pub use config::{Config, Cull, Stop, OPTION_DOCS, PRESETS};
+pub use config::{Config, Cull, Space, Stop, OPTION_DOCS, PRESETS};
 
 use crate::error::Result;
 use crate::mem::reserve_exact_huge;
@@ -137,8 +137,15 @@ crate::counters! {
         leaves,
         /// Ray-space splits.
         ray_splits,
-        /// Spatial splits (the hybrid, front to back along the major axis).
+        /// Spatial splits (the hybrid, front to back along the major axis, `space=major`).
         spatial_splits,
+        /// Box splits (the hybrid, `space=box`: object splits, rays clipped to each child).
+        box_splits,
+        /// Rays a box split's child dropped (no hit possible in its box before their best).
+        clipped_out,
+        /// Box split children bounding their rays from the clipped origins (the others keep
+        /// the original origins, whose box was smaller).
+        clips,
         /// Nodes that culled their parent's triangles against their own bound.
         culls,
         /// Triangle/frustum tests.

@@ -3,22 +3,39 @@
 //! 5D, or (the hybrid, ours) splits its triangles in space along the major axis, near half
 //! first, with exact early termination; naive leaves.
 
-use super::{Config, Counts, Cull, Stop};
-use crate::geom::ray5d::{axes, Bound5, Cone5, Frustum5, DELTA};
-use crate::geom::{intersect_triangle, intersect_triangle4, Tri4};
+use super::{Config, Counts, Cull, Space, Stop};
+use crate::geom::ray5d::{axes, clip, Bound5, Cone5, Frustum5, DELTA};
+use crate::geom::{intersect_triangle, intersect_triangle4, Tri4, Vec3};
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
-use crate::tracers::dacrt::partition::gather_block;
+use crate::tracers::dacrt::partition::{gather_block, prefetch};
 
-/// A ray in the recursion (24 bytes, swapped with its id): its 5D point `(x, y, z, u, v)`
-/// ([`crate::geom::ray5d::classify`]) and its index in the task's share.
+/// A ray in the recursion (28 bytes, swapped with its id): its 5D point `(x, y, z, u, v)`
+/// ([`crate::geom::ray5d::classify`]; below a box split the origin is the ray's entry into the
+/// split child's triangle box, `geom::ray5d::clip`), its original origin's largest coordinate
+/// magnitude (the cull margins' scale must cover it), and its index in the task's share.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
 pub(super) struct Rec {
     pub(super) p: [f32; 5],
+    pub(super) s: f32,
     pub(super) id: u32,
 }
+
+/// What a node is handed besides its rays and triangles.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Given {
+    /// Nothing: it bounds its rays and culls.
+    Rays,
+    /// The parent's rays and bound (a major-axis cut's near half): no new cull.
+    Uncut(Bound5),
+    /// Its rays' bound and their original origins' scale (a box split's clip pass): it culls.
+    Bound(Bound5, f32),
+}
+
+/// How many rays ahead [`Task::clip_rays`] asks for a ray's data.
+const CLIP_PREFETCH: usize = 8;
 
 /// Leaves with at most this many triangles gather them into groups of four.
 const LEAF4_MAX: usize = 64;
@@ -49,8 +66,8 @@ pub(super) struct Task<'a, const ANY: bool> {
 }
 
 impl<'a, const ANY: bool> Task<'a, ANY> {
-    /// Node of bundle `g`: rays `recs[r0..r1]`, the parent's triangles `tri_idx[..ntp]`. With
-    /// `bound` given the rays are the parent's (a spatial split's near half): no new cull.
+    /// Node of bundle `g`: rays `recs[r0..r1]`, the parent's triangles `tri_idx[..ntp]`, and
+    /// what the parent hands down ([`Given`]).
     pub(super) fn node(
         &mut self,
         g: usize,
@@ -58,18 +75,26 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         r1: usize,
         ntp: usize,
         depth: u32,
-        bound: Option<Bound5>,
+        given: Given,
     ) {
         self.st.nodes += 1;
-        let b = bound.unwrap_or_else(|| Bound5::of(self.recs[r0..r1].iter().map(|r| &r.p)));
-        let s_all = self.scale.max(b.origin_scale());
-        let nt = if bound.is_some() {
-            ntp
-        } else {
+        let rays_scale = |recs: &[Rec]| recs.iter().fold(0.0f32, |m, r| m.max(r.s));
+        let (b, s_rays, culls) = match given {
+            Given::Rays => {
+                let recs = &self.recs[r0..r1];
+                (Bound5::of(recs.iter().map(|r| &r.p)), rays_scale(recs), true)
+            }
+            Given::Uncut(b) => (b, rays_scale(&self.recs[r0..r1]), false),
+            Given::Bound(b, s) => (b, s, true),
+        };
+        let s_all = self.scale.max(b.origin_scale()).max(s_rays);
+        let nt = if culls {
             self.cull(g, &b, s_all, ntp, depth)
+        } else {
+            ntp
         };
         if let Some(c) = self.cost.as_mut() {
-            let tests = if bound.is_some() { 0 } else { ntp as u64 };
+            let tests = if culls { ntp as u64 } else { 0 };
             for r in &self.recs[r0..r1] {
                 c.add(r.id as usize, 1, tests, 0);
             }
@@ -85,14 +110,21 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             }
             Stop::Fixed => nr < self.cfg.r_limit || nt < self.cfg.p_limit,
         };
-        if leaf || depth >= self.cfg.max_depth {
+        let boxes = self.cfg.spatial && self.cfg.space == Space::Box;
+        if depth >= self.cfg.max_depth || (leaf && !(boxes && nt > self.cfg.leaf_tris)) {
             return self.leaf(r0, r1, nt);
         }
-        if self.cfg.spatial
-            && nt as f32 > self.cfg.spatial_ratio * nr as f32
-            && self.spatial_split(g, r0, r1, nt, depth, &b, s_all)
-        {
-            return;
+        if self.cfg.spatial && (leaf || nt as f32 > self.cfg.spatial_ratio * nr as f32) {
+            let split = match self.cfg.space {
+                Space::Box => self.box_split(g, r0, r1, nt, depth, &b),
+                Space::Major => self.spatial_split(g, r0, r1, nt, depth, &b, s_all),
+            };
+            if split {
+                return;
+            }
+            if leaf {
+                return self.leaf(r0, r1, nt);
+            }
         }
         if !self.ray_split(g, r0, r1, nt, depth, &b) {
             self.leaf(r0, r1, nt);
@@ -102,29 +134,19 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// Filters `tri_idx[..ntp]` in place (branch-free Lomuto) against the node's frustum or
     /// cone; returns the survivors' count.
     fn cull(&mut self, g: usize, b: &Bound5, s_all: f32, ntp: usize, depth: u32) -> usize {
-        let boxes = self.boxes;
-        let idx = &mut self.tri_idx[..ntp];
-        let mut k = 0;
-        let mut run = |keeps: &dyn Fn(&[f32; 3], &[f32; 3]) -> bool| {
-            for p in 0..ntp {
-                let bx = &boxes[idx[p] as usize];
-                let keep = keeps(&[bx[0], bx[1], bx[2]], &[bx[3], bx[4], bx[5]]);
-                idx.swap(k, p);
-                k += keep as usize;
-            }
-        };
-        match self.cfg.cull {
+        let (boxes, idx) = (self.boxes, &mut self.tri_idx[..ntp]);
+        let k = match self.cfg.cull {
             Cull::Frustum => {
                 let f = Frustum5::new(g, b, s_all);
-                run(&|lo, hi| f.keeps(lo, hi));
                 self.st.frustum_tests += ntp as u64;
+                filter(idx, boxes, |lo, hi| f.keeps(lo, hi))
             }
             Cull::Cone => {
                 let c = Cone5::new(g, b, s_all);
-                run(&|lo, hi| c.keeps(lo, hi));
                 self.st.cone_tests += ntp as u64;
+                filter(idx, boxes, |lo, hi| c.keeps(lo, hi))
             }
-        }
+        };
         self.st.culls += 1;
         let surv = match depth {
             0 => &mut self.st.surv_d0,
@@ -178,9 +200,157 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return false;
         }
         self.st.ray_splits += 1;
-        self.node(g, r0, r0 + k, nt, depth + 1, None);
-        self.node(g, r0 + k, r1, nt, depth + 1, None);
+        self.node(g, r0, r0 + k, nt, depth + 1, Given::Rays);
+        self.node(g, r0 + k, r1, nt, depth + 1, Given::Rays);
         true
+    }
+
+    /// The hybrid's box split (`space=box`): the triangles are split at the middle of their
+    /// centroids' longest extent into two disjoint sets, the one the rays meet first (by the
+    /// bundle's sign on that axis, or the sign of the middle slope) taken first; each child
+    /// keeps the rays whose slab interval in its triangles' union box, clipped to `[tmin,
+    /// best]`, is not empty, with their origins moved to that interval's entry (exact:
+    /// `geom::ray5d`, "Clipped origins"), and culls its triangles against the tighter bound of
+    /// those clipped rays. The second child re-clips from the batch's rays, so the first child's
+    /// clips never reach it. False when the centroids do not spread.
+    fn box_split(
+        &mut self,
+        g: usize,
+        r0: usize,
+        r1: usize,
+        nt: usize,
+        depth: u32,
+        b: &Bound5,
+    ) -> bool {
+        let boxes = self.boxes;
+        // Centroids doubled (`lo + hi`): only their order matters.
+        let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &t in &self.tri_idx[..nt] {
+            let bx = &boxes[t as usize];
+            let c = Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
+            clo = clo.min(c);
+            chi = chi.max(c);
+        }
+        let ext = chi - clo;
+        let a = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        if !(ext[a] > 0.0) {
+            return false;
+        }
+        let plane = clo[a] + ext[a] * 0.5;
+        // Rays moving towards +a meet the low side first.
+        let (k, s, i, _) = axes(g);
+        let up = if a == k {
+            s > 0.0
+        } else {
+            let d = if a == i { 3 } else { 4 };
+            b.lo[d] + b.hi[d] >= 0.0
+        };
+        let idx = &mut self.tri_idx[..nt];
+        let (mut n1, mut lo1, mut hi1) = (0, Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let (mut lo2, mut hi2) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for p in 0..nt {
+            let bx = &boxes[idx[p] as usize];
+            let (lo, hi) = (Vec3::new(bx[0], bx[1], bx[2]), Vec3::new(bx[3], bx[4], bx[5]));
+            let first = (bx[a] + bx[3 + a] <= plane) == up;
+            if first {
+                (lo1, hi1) = (lo1.min(lo), hi1.max(hi));
+            } else {
+                (lo2, hi2) = (lo2.min(lo), hi2.max(hi));
+            }
+            idx.swap(n1, p);
+            n1 += first as usize;
+        }
+        if n1 == 0 || n1 == nt {
+            return false;
+        }
+        self.st.box_splits += 1;
+        let (k1, given) = self.clip_rays(r0, r1, lo1, hi1);
+        if k1 > r0 {
+            self.node(g, r0, k1, n1, depth + 1, given);
+        }
+        // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
+        let n2 = gather_block(&mut self.tri_idx, 0, n1, nt);
+        let (k2, given) = self.clip_rays(r0, r1, lo2, hi2);
+        if k2 > r0 {
+            self.node(g, r0, k2, n2, depth + 1, given);
+        }
+        true
+    }
+
+    /// Moves the rays of `recs[r0..r1]` that can hit a triangle inside the box `[lo, hi]`
+    /// before their best hit to the front of the range, their origins clipped to the box
+    /// (`geom::ray5d::clip`), and bounds them; returns the end of the kept rays and their
+    /// bound. The clipped origins are kept only when their box is smaller (the sum of its
+    /// extents) than the original origins' (rays from one point, a camera's, are bound
+    /// tighter by their apex than by their entry points); otherwise the records get their
+    /// original origins back.
+    fn clip_rays(&mut self, r0: usize, r1: usize, lo: Vec3, hi: Vec3) -> (usize, Given) {
+        let (mut orig, mut clipped) = (Bound5::EMPTY, Bound5::EMPTY);
+        let mut s_rays = 0.0f32;
+        let mut q = r0;
+        for p in r0..r1 {
+            if p + CLIP_PREFETCH < r1 {
+                self.prefetch_ray(self.recs[p + CLIP_PREFETCH].id as usize);
+            }
+            let id = self.recs[p].id as usize;
+            let i = self.base + id;
+            let best = if ANY {
+                if self.occ[id] {
+                    f32::NEG_INFINITY
+                } else {
+                    self.rays.tmax[i]
+                }
+            } else {
+                self.t[id]
+            };
+            let (o, d) = (self.rays.origin(i), self.rays.dir(i));
+            let kept = match clip(o, d, lo, hi, self.rays.tmin[i], best) {
+                Some(oc) => {
+                    let r = &mut self.recs[p];
+                    r.p[..3].copy_from_slice(&oc.to_array());
+                    clipped.add(&r.p);
+                    orig.add(&[o.x, o.y, o.z, r.p[3], r.p[4]]);
+                    s_rays = s_rays.max(r.s);
+                    true
+                }
+                None => false,
+            };
+            self.recs.swap(q, p);
+            q += kept as usize;
+        }
+        self.st.clipped_out += (r1 - q) as u64;
+        if orig.origin_extent() <= clipped.origin_extent() {
+            for r in &mut self.recs[r0..q] {
+                let o = self.rays.origin(self.base + r.id as usize);
+                r.p[..3].copy_from_slice(&o.to_array());
+            }
+            return (q, Given::Bound(orig, s_rays));
+        }
+        self.st.clips += 1;
+        (q, Given::Bound(clipped, s_rays))
+    }
+
+    /// Asks for ray `id`'s scattered data (the batch's arrays are in ray order, the records
+    /// in node order).
+    #[inline(always)]
+    fn prefetch_ray(&self, id: usize) {
+        let i = self.base + id;
+        let r = self.rays;
+        for a in [&r.ox, &r.oy, &r.oz, &r.dx, &r.dy, &r.dz, &r.tmin] {
+            prefetch(a, i);
+        }
+        if ANY {
+            prefetch(self.occ, id);
+            prefetch(&r.tmax, i);
+        } else {
+            prefetch(self.t, id);
+        }
     }
 
     /// The hybrid's spatial split along bundle `g`'s major axis `k` (sign `s`): triangles whose
@@ -223,7 +393,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             return false;
         }
         self.st.spatial_splits += 1;
-        self.node(g, r0, r1, nn, depth + 1, Some(*b));
+        self.node(g, r0, r1, nn, depth + 1, Given::Uncut(*b));
         // The near recursion permuted only `[0, nn)`: the far triangles are still `[nn, nt)`.
         let nf = gather_block(&mut self.tri_idx, 0, nn, nt);
         // Final rays to the front of the range.
@@ -242,7 +412,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
         self.st.terminated += (q - r0) as u64;
         if q < r1 {
-            self.node(g, q, r1, nf, depth + 1, None);
+            self.node(g, q, r1, nf, depth + 1, Given::Rays);
         }
         true
     }
@@ -331,4 +501,18 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         }
         self.st.ray_tri += tests;
     }
+}
+
+/// Keeps (moves to the front of `idx`, branch-free Lomuto) the triangles whose boxes `keeps`
+/// accepts; returns how many.
+#[inline(always)]
+fn filter(idx: &mut [u32], boxes: &[[f32; 6]], keeps: impl Fn(&[f32; 3], &[f32; 3]) -> bool) -> usize {
+    let mut k = 0;
+    for p in 0..idx.len() {
+        let bx = &boxes[idx[p] as usize];
+        let keep = keeps(&[bx[0], bx[1], bx[2]], &[bx[3], bx[4], bx[5]]);
+        idx.swap(k, p);
+        k += keep as usize;
+    }
+    k
 }

@@ -1,7 +1,7 @@
 //! One task: its share of the rays classified into the bundles (a counting sort into the
 //! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
 
-use super::rec::{Rec, Task};
+use super::rec::{Given, Rec, Task};
 use super::{Counts, Dacrt5d, Scratch};
 use crate::geom::ray5d::{classify, GROUPS, UNBOUNDED};
 use crate::rays::{RayBatch, MISS};
@@ -75,6 +75,7 @@ impl Dacrt5d {
             let (g, p) = classify(rays.origin(i), rays.dir(i), rays.tmin[i]);
             task.recs[next[g]] = Rec {
                 p,
+                s: rays.origin(i).abs().max_element(),
                 id: (i - base) as u32,
             };
             next[g] += 1;
@@ -91,7 +92,7 @@ impl Dacrt5d {
         if nlive > 0 {
             for g in 0..UNBOUNDED {
                 if start[g] < start[g + 1] {
-                    task.node(g, start[g], start[g + 1], nlive, 0, None);
+                    task.node(g, start[g], start[g + 1], nlive, 0, Given::Rays);
                 }
             }
             if start[UNBOUNDED] < len {
