@@ -4,16 +4,18 @@
 //! ```text
 //! cargo run --release -p raysift --example dacrt5d_bench -- SCENE_SPEC \
 //!     [--width W] [--random N] [--bounces B] [--repeat R] [--threads N] \
-//!     [--tracer "NAME key=value ..."]...
+//!     [--tracer "NAME key=value ..."]... [--counters] [--eye X,Y,Z --look X,Y,Z] [--fov F]
+//!     [--light X,Y,Z]
 //! ```
 //!
-//! Batches: W×W pinhole camera rays (default framing), the same rays shuffled (no layout),
-//! shadow rays from the camera hits to a light above the scene (occlusion), N random rays
+//! Batches: W×W pinhole camera rays (default framing, or `--eye`/`--look`), the same rays shuffled (no layout),
+//! shadow rays from the camera hits to a light above the scene or at `--light` (occlusion), N random rays
 //! (origins in the scene's box), and B path-tracing bounces (cosine-weighted diffuse rays from
 //! the previous bounce's hits, as `render::path` makes them; bounce 1 leaves the camera hits).
 //! Per batch and tracer: Mrays/s (trace only; prepare is timed once per tracer and printed),
 //! and per ray the ray/triangle tests and the cull tests, and the mean triangles surviving a
 //! `dacrt5d` cull. Every answer is compared with the first contender's (they must agree).
+//! `--counters` adds every work counter of each contender as an HTML comment line.
 
 use raysift::rays::generate::{bounce_rays, random_in_box, shadow_rays};
 use raysift::rays::{Camera, RayLayout};
@@ -34,6 +36,18 @@ fn run() -> Res<()> {
     let (mut spec, mut specs) = (None, Vec::new());
     let (mut width, mut random, mut bounces, mut repeat, mut threads) =
         (512u32, 1usize << 18, 3usize, 3usize, 0usize);
+    let mut counters = false;
+    let (mut eye, mut look, mut fov, mut light_at) = (None, None, 45.0f32, None);
+    let vec3 = |v: &String| -> Res<glam::Vec3> {
+        let c: Vec<f32> = v
+            .split(',')
+            .map(|x| x.trim().parse())
+            .collect::<Result<_, _>>()?;
+        match c[..] {
+            [x, y, z] => Ok(glam::Vec3::new(x, y, z)),
+            _ => Err(format!("expected x,y,z, got {v:?}").into()),
+        }
+    };
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = || it.next().ok_or(format!("{a} needs a value"));
@@ -44,11 +58,16 @@ fn run() -> Res<()> {
             "--repeat" => repeat = val()?.parse::<usize>()?.max(1),
             "--threads" => threads = val()?.parse()?,
             "--tracer" => specs.push(val()?.clone()),
+            "--counters" => counters = true,
+            "--eye" => eye = Some(vec3(val()?)?),
+            "--look" => look = Some(vec3(val()?)?),
+            "--fov" => fov = val()?.parse()?,
+            "--light" => light_at = Some(vec3(val()?)?),
             s if spec.is_none() => spec = Some(s.to_string()),
             s => return Err(format!("unexpected argument {s:?}").into()),
         }
     }
-    let spec = spec.ok_or("usage: dacrt5d_bench SCENE_SPEC [--width W] [--random N] [--bounces B] [--repeat R] [--threads N] [--tracer \"NAME k=v ...\"]...")?;
+    let spec = spec.ok_or("usage: dacrt5d_bench SCENE_SPEC [--width W] [--random N] [--bounces B] [--repeat R] [--threads N] [--tracer \"NAME k=v ...\"]... [--counters]")?;
     if specs.is_empty() {
         specs = [
             "bvh",
@@ -79,13 +98,17 @@ fn run() -> Res<()> {
             ts.push((s.clone(), t));
         }
         let b = scene.bounds();
-        let cam = Camera::framing(&b, 45.0, 1.0).rays(width, width);
+        let mut camera = Camera::framing(&b, fov, 1.0);
+        if let (Some(e), Some(l)) = (eye, look) {
+            (camera.eye, camera.look) = (e, l);
+        }
+        let cam = camera.rays(width, width);
         let (mut hits, mut occ) = (HitBatch::new(0), Vec::new());
         ts[0].1.intersect(&scene, &cam, &mut hits, None)?;
         let n = cam.len();
         let mut shuffled = RayBatch::from_rays((0..n).map(|i| cam.get(i * 7919 % n)));
         shuffled.layout = RayLayout::Unknown;
-        let light = b.center() + glam::Vec3::new(0.0, b.extent().y * 0.45, 0.0);
+        let light = light_at.unwrap_or(b.center() + glam::Vec3::new(0.0, b.extent().y * 0.45, 0.0));
         let (shadow, _) = shadow_rays(&scene, &cam, &hits, light);
         let mut batches = vec![
             ("camera".to_string(), cam.clone(), false),
@@ -146,6 +169,10 @@ fn run() -> Res<()> {
                     if culls > 0 { format!("{:.0}", surv as f64 / culls as f64) } else { "-".into() },
                     if name.starts_with("dacrt5d") { w.get("terminated").to_string() } else { "-".into() },
                 );
+                if counters {
+                    let all: Vec<String> = w.iter().map(|(k, v)| format!("{k}={v}")).collect();
+                    println!("<!-- {label} {name}: {} -->", all.join(" "));
+                }
             }
         }
         Ok(())

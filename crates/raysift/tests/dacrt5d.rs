@@ -154,16 +154,23 @@ fn stats(s: &Scene, rays: &RayBatch, kv: &[(&str, &str)]) -> Stats {
 /// Each option does what it says in the counters: the chosen cull runs (and culls: fewer
 /// ray/triangle tests than naive's R·T), spatial splits (box splits, or major-axis cuts that
 /// terminate rays early) happen only when on, the fixed stop differs from the cost stop.
-/// Random rays (origins all over the scene): box splits bound them from their entry points into
-/// each child's box, and the leaves test far fewer pairs than with major-axis cuts, where a
-/// node of 16 rays or fewer is a leaf with all its triangles.
+/// Random rays (origins all over the scene): box splits shared by all bundles, then bounds from
+/// the rays' entry points into each child's box, and the leaves test far fewer pairs than with
+/// major-axis cuts, where a node of 16 rays or fewer is a leaf with all its triangles.
 #[test]
 fn box_splits_clip_incoherent_rays() {
     let s = procedural::icosphere(5120);
     let rays = random_in_box(&s.bounds(), 4000, 3);
     let b = stats(&s, &rays, &[]);
     let m = stats(&s, &rays, &[("space", "major")]);
-    assert!(b.work.get("clips") > 0, "{:?}", b.work);
+    assert!(
+        b.work.get("clips") > 0 && b.work.get("top_splits") > 0,
+        "{:?}",
+        b.work
+    );
+    // Rays from one point go to their bundles at once: no shared splits.
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(48, 48);
+    assert_eq!(stats(&s, &cam, &[]).work.get("top_splits"), 0);
     assert!(
         b.work.get("ray_tri") * 5 < m.work.get("ray_tri"),
         "box {} vs major {}",
@@ -245,7 +252,7 @@ fn measure(f: impl FnOnce()) -> usize {
     TOTAL.load(Relaxed) - t0
 }
 
-/// Prepare allocates `24·T`; a first call `4·T·K + 28·R` (K tasks), whatever the scene's shape,
+/// Prepare allocates `24·T`; a first call `4·T·K + 48·R` (K tasks), whatever the scene's shape,
 /// the rays and the options; a second call nothing; `bytes()` reports the sum.
 #[test]
 fn memory_is_a_deterministic_linear_function() {
@@ -296,9 +303,9 @@ fn memory_is_a_deterministic_linear_function() {
                 }
                 let [prepare, first, again, held] = m;
                 assert_eq!(prepare, 24 * t, "{kv:?}");
-                assert_eq!(first, 4 * t * tasks + 28 * r, "{kv:?} tasks {tasks}");
+                assert_eq!(first, 4 * t * tasks + 48 * r, "{kv:?} tasks {tasks}");
                 assert_eq!(again, 0, "{kv:?}");
-                assert_eq!(held, 24 * t + 4 * t * tasks + 28 * r);
+                assert_eq!(held, 24 * t + 4 * t * tasks + 48 * r);
             }
         }
     }

@@ -29,7 +29,7 @@
 //!   rounding of `c_T`, `r_T`, the axis and `cos θ, sin θ`, each a few `ε·S` or `2^-20·|w|`,
 //!   `|w| ≤ 2S`) never drops a triangle with a hit.
 //!
-//! **Clipped origins** ([`clip`]). A node whose triangles all lie in a box `B` (their union)
+//! **Clipped origins** ([`clip`], [`moved`]). A node whose triangles all lie in a box `B` (their union)
 //! may bound its rays from their entry into `B` instead of their origins: the gate puts every
 //! hit's `t` in the slab interval of its triangle's box, which lies inside `B`'s (the slab test
 //! is monotone in the box: `geom::triangle`), so `t ≥ t0`, the entry of `B`'s interval, and every
@@ -98,16 +98,27 @@ pub fn classify(o: Vec3, d: Vec3, tmin: f32) -> (usize, [f32; 5]) {
     }
 }
 
-/// The origin of the ray `o + t·d` moved to its entry into the box `[lo, hi]` (the shared slab
-/// test's interval clipped to `[tmin, tmax]`, [`crate::geom::SlabRay::interval`]), or `None`
-/// when that interval is empty: no hit of the shared test on a triangle whose box lies in
-/// `[lo, hi]` has its `t` before the returned point or outside `[tmin, tmax]` (module doc,
-/// "Clipped origins").
+/// The entry of the ray `o + t·d` into the box `[lo, hi]`: the parameter `t0 ≥ 0` where the
+/// shared slab test's interval, clipped to `[tmin, tmax]`, starts
+/// ([`crate::geom::SlabRay::interval`]), or `None` when that interval is empty. No hit of the
+/// shared test on a triangle whose box lies in `[lo, hi]` has its `t` before `t0` or outside
+/// `[tmin, tmax]` (module doc, "Clipped origins"); [`moved`] gives the point to bound from.
 #[inline(always)]
-pub fn clip(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Option<Vec3> {
+pub fn clip(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Option<f32> {
     let (t0, _) = crate::geom::SlabRay::new(o, d).interval(lo, hi, tmin, tmax)?;
     // `t0 < 0` only from a negative `tmin` (unbounded group, never clipped) or a lowered 0.
-    Some(if t0 > 0.0 { o + d * t0 } else { o })
+    Some(if t0 > 0.0 { t0 } else { 0.0 })
+}
+
+/// The point `o + t0·d` a clipped ray is bound from (`o` itself for `t0 = 0`), the same f32
+/// operations wherever it is computed.
+#[inline(always)]
+pub fn moved(o: Vec3, d: Vec3, t0: f32) -> Vec3 {
+    if t0 > 0.0 {
+        o + d * t0
+    } else {
+        o
+    }
 }
 
 /// `x` raised past the exact slope its rounded division stands for.
@@ -427,7 +438,8 @@ mod tests {
                 Vec3::from(lo).min(other),
                 Vec3::from(hi).max(other + e(&mut rng).abs()),
             );
-            let oc = clip(o, dir, blo, bhi, 0.0, f32::INFINITY).expect("the hit is in the box");
+            let t0 = clip(o, dir, blo, bhi, 0.0, f32::INFINITY).expect("the hit is in the box");
+            let oc = moved(o, dir, t0);
             clipped += (oc != o) as u32;
             let (_, pc) = classify(oc, dir, 0.0);
             let bc = Bound5::of([&pc]);
@@ -453,7 +465,10 @@ mod tests {
             culled += (!Cone5::new(g, &b1, s_all * 3.0).keeps(&lo2, &hi2)) as u32;
         }
         assert!(hits > 5_000, "{hits}");
-        assert!(clipped > hits / 2, "clips that moved the origin: {clipped} of {hits}");
+        assert!(
+            clipped > hits / 2,
+            "clips that moved the origin: {clipped} of {hits}"
+        );
         assert!(
             culled as f64 > 1.8 * far as f64,
             "culls too weak: {culled} of {}",

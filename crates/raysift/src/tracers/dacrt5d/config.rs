@@ -79,6 +79,12 @@ pub struct Config {
     /// holds more than this many triangles (the post's rule makes every node of 16 rays or
     /// fewer a leaf, however many triangles it has). Default 32.
     pub leaf_tris: usize,
+    /// With `space=box`: above the bundles (box splits shared by the rays of all six), a bundle
+    /// takes over its rays when their origins' box (the sum of its extents, origins clipped to
+    /// the node's box) is at most this fraction of the node's triangle box: rays from one point
+    /// at once, rays from all over the scene (random, bounces) not until their node is small.
+    /// 0 hands over only by `spatial_ratio`; a large value hands over at the root. Default 0.25.
+    pub hand_over: f32,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -100,6 +106,7 @@ impl Default for Config {
             spatial_ratio: 2.0,
             space: Space::Box,
             leaf_tris: 32,
+            hand_over: 0.25,
             max_depth: 64,
             tasks: 0,
         }
@@ -118,6 +125,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "spatial", doc: "hybrid: spatial splits along the major axis (front to back, early termination) where triangles outnumber rays" },
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
+    OptionDoc { key: "hand_over", doc: "space=box: a bundle leaves the shared box splits when its origins' box is at most this fraction of the node's" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
     OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
@@ -187,6 +195,10 @@ pub const PRESETS: &[Preset] = &[
             ("c_g", "1"),
             ("spatial_ratio", "0"),
         ],
+    },
+    Preset {
+        name: "shared box splits only (no hand-over by size)",
+        opts: &[("hand_over", "0"), ("spatial_ratio", "0.1"), ("tasks", "2")],
     },
     Preset {
         name: "box splits down to one triangle",

@@ -9,7 +9,7 @@
 //! | `mod.rs` | [`Dacrt5d`], `impl Tracer`, counters, memory | |
 //! | `config.rs` | [`Config`]: cull, stop, constants, presets | the post's choices, ours |
 //! | `geom/ray5d.rs` (shared geometry) | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a group's 5D box, the open frustum and the cone, their exact culls, and their tests | Arvo–Kirk; the post's frustum |
-//! | `rec.rs` | the recursion: cull, cost stop or fixed limits, ray-space split, spatial split (front to back, early termination), naive leaves | the post's `DACRT`, termination criterion; ours |
+//! | `rec.rs` | the recursion: cull, cost stop or fixed limits, ray-space split, spatial splits (box splits with clipped rays; major-axis cuts with early termination), naive leaves | the post's `DACRT`, termination criterion; ours |
 //! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the bundles' recursions, results | |
 //!
 //! What implements which part of the post:
@@ -41,12 +41,28 @@
 //!   four-wide test when at most 64 triangles, else the scalar test).
 //! - **Order and early termination** (ours; the post has none), with the **hybrid** (ours): a
 //!   node whose surviving triangles outnumber its rays (`G > spatial_ratio·R`, default 2:
-//!   coherent rays, many triangles, where ray splits cannot shrink `G`) is split in *space*
-//!   along its bundle's major axis at the mean of the triangles' near ends: the near triangles
-//!   (near end at or before the plane) are traced first with all the rays, then the rays whose
-//!   best hit (or `tmax`) lies before the plane by the rounding bound leave, exactly: every far
-//!   triangle starts beyond the plane, and a hit on it would lie beyond it too (`rec.rs`,
-//!   `Task::spatial_split`). Occlusion is any-hit: an occluded ray leaves there too.
+//!   coherent rays, many triangles, where ray splits cannot shrink `G`) is split in *space*.
+//!   Two ways (`space`):
+//!   - `box` (default; `rec.rs`, `Task::box_split`): the triangles are split in two disjoint
+//!     sets at the middle of their centroids' longest extent (a BVH node made on the fly), the
+//!     set the rays meet first taken first; each child keeps only the rays whose slab interval
+//!     in its triangles' union box, clipped to `[tmin, best hit]`, is not empty (the shared slab
+//!     test: every hit of the child's triangles lies in that interval, `geom::triangle`), moves
+//!     their origins to the interval's entry and culls its triangles again against the bound of
+//!     these clipped rays (`geom::ray5d::clip`, exact by the argument there; a child whose
+//!     original origins span a smaller box, rays from one point, keeps them). Clipping is what
+//!     makes incoherent rays cullable: a 5D bound of rays with origins all over the scene holds
+//!     most of it, the bound of their entry points into a small box does not. With box splits
+//!     the post's stop rule no longer ends the recursion at 16 rays or fewer: a would-be leaf
+//!     with more than `leaf_tris` (32) triangles is split in space too. Measured against the
+//!     other way in BENCHMARKS.md § "dacrt5d: box splits";
+//!   - `major` (the first hybrid; `Task::spatial_split`): a cut along the bundle's major axis at
+//!     the mean of the triangles' near ends: the near triangles (near end at or before the
+//!     plane) are traced first with all the rays, then the rays whose best hit (or `tmax`) lies
+//!     before the plane by the rounding bound leave, exactly: every far triangle starts beyond
+//!     the plane, and a hit on it would lie beyond it too.
+//!
+//!   Occlusion is any-hit: an occluded ray leaves at either split.
 //! - **Threads** (`run.rs`): rayon tasks over disjoint shares of the rays (as `dacrt`), each with
 //!   its own lists, classifying its share into the bundles and recursing on each.
 //! - **Shared code**: the block move of the far triangles to the prefix and the buffer reuse are
@@ -57,14 +73,15 @@
 //! and [`closer`](crate::tracer::closer); every cull and termination is conservative.
 //!
 //! **Memory** (deterministic, independent of the scene's shape): prepare holds `24·T` (each
-//! triangle's box); a call with `K` tasks allocates `4·T` per task (triangle ids) and `24·R`
-//! (one 24-byte record per ray: 5D point and id), kept by the tracer for the next call (a
+//! triangle's box); a call with `K` tasks allocates `4·T` per task (triangle ids) and `28·R`
+//! (one 28-byte record per ray: 5D point, origin scale and id), kept by the tracer for the next call (a
 //! second call of the same size allocates nothing). So `a = 24 + 4K` bytes per triangle,
-//! `b = 24` per ray; `tests/dacrt5d.rs` checks it with a counting allocator.
+//! `b = 28` per ray; `tests/dacrt5d.rs` checks it with a counting allocator.
 
 mod config;
 mod rec;
 mod run;
+mod space;
 
 pub use config::{Config, Cull, Space, Stop, OPTION_DOCS, PRESETS};
 
@@ -98,6 +115,8 @@ pub struct Dacrt5d {
     /// The largest coordinate magnitude and extent of the scene's live triangles.
     scale: f32,
     extent: f32,
+    /// The live triangles' box (`lo`, `hi`).
+    bounds: [[f32; 3]; 2],
     pool: Vec<Mutex<Scratch>>,
 }
 
@@ -110,6 +129,7 @@ impl Dacrt5d {
             boxes: Vec::new(),
             scale: 0.0,
             extent: 0.0,
+            bounds: [[0.0; 3]; 2],
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
         }
     }
@@ -139,8 +159,13 @@ crate::counters! {
         ray_splits,
         /// Spatial splits (the hybrid, front to back along the major axis, `space=major`).
         spatial_splits,
-        /// Box splits (the hybrid, `space=box`: object splits, rays clipped to each child).
+        /// Box splits inside a bundle (the hybrid, `space=box`: object splits, rays clipped to
+        /// each child).
         box_splits,
+        /// Box splits above the bundles (the rays of every bundle together).
+        top_splits,
+        /// Ray/box clips (each box split clips its rays against both children's boxes).
+        ray_clips,
         /// Rays a box split's child dropped (no hit possible in its box before their best).
         clipped_out,
         /// Box split children bounding their rays from the clipped origins (the others keep
@@ -229,6 +254,7 @@ impl Tracer for Dacrt5d {
         }
         self.scale = scale;
         self.extent = (0..3).map(|k| hi_all[k] - lo_all[k]).fold(0.0f32, f32::max);
+        self.bounds = [lo_all, hi_all];
         self.stamp = scene.stamp();
         Ok(Stats::prepared(
             &Built {

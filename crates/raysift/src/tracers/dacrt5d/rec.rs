@@ -1,26 +1,48 @@
 //! The recursion (the post's `DACRT` over ray space): each node culls its parent's triangle
 //! prefix against its rays' bound, then stops (cost rule or fixed limits), splits its rays in
-//! 5D, or (the hybrid, ours) splits its triangles in space along the major axis, near half
-//! first, with exact early termination; naive leaves.
+//! 5D, or (the hybrid, ours) splits its triangles in space: box splits (`space.rs`) or a cut
+//! along the major axis, near half first, with exact early termination; naive leaves.
 
 use super::{Config, Counts, Cull, Space, Stop};
-use crate::geom::ray5d::{axes, clip, Bound5, Cone5, Frustum5, DELTA};
+use crate::geom::ray5d::{axes, moved, Bound5, Cone5, Frustum5, DELTA};
 use crate::geom::{intersect_triangle, intersect_triangle4, Tri4, Vec3};
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
-use crate::tracers::dacrt::partition::{gather_block, prefetch};
+use crate::tracers::dacrt::partition::gather_block;
 
-/// A ray in the recursion (28 bytes, swapped with its id): its 5D point `(x, y, z, u, v)`
-/// ([`crate::geom::ray5d::classify`]; below a box split the origin is the ray's entry into the
-/// split child's triangle box, `geom::ray5d::clip`), its original origin's largest coordinate
-/// magnitude (the cull margins' scale must cover it), and its index in the task's share.
+/// A ray in the recursion (48 bytes, swapped whole): its origin, direction and `tmin` copied
+/// from the batch (clips and leaves read them here, in node order, not in the batch's
+/// scattered arrays), the parameter `t0` of the point its bound starts from (0: the origin;
+/// below a box split, its entry into the child's triangle box: `geom::ray5d::clip`), its
+/// slopes `u, v` ([`crate::geom::ray5d::classify`]), its index in the task's share and its
+/// bundle.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
 pub(super) struct Rec {
-    pub(super) p: [f32; 5],
-    pub(super) s: f32,
+    pub(super) o: [f32; 3],
+    pub(super) d: [f32; 3],
+    pub(super) tmin: f32,
+    pub(super) t0: f32,
+    pub(super) uv: [f32; 2],
     pub(super) id: u32,
+    pub(super) g: u32,
+}
+
+impl Rec {
+    /// The 5D point the bounds hold: `(o + t0·d, u, v)`.
+    #[inline(always)]
+    pub(super) fn point(&self) -> [f32; 5] {
+        let c = moved(Vec3::from(self.o), Vec3::from(self.d), self.t0);
+        [c.x, c.y, c.z, self.uv[0], self.uv[1]]
+    }
+
+    /// The largest coordinate magnitude of the original origin (the cull margins' scale must
+    /// cover it: `geom::ray5d`, "Clipped origins").
+    #[inline(always)]
+    pub(super) fn scale(&self) -> f32 {
+        Vec3::from(self.o).abs().max_element()
+    }
 }
 
 /// What a node is handed besides its rays and triangles.
@@ -33,9 +55,6 @@ pub(super) enum Given {
     /// Its rays' bound and their original origins' scale (a box split's clip pass): it culls.
     Bound(Bound5, f32),
 }
-
-/// How many rays ahead [`Task::clip_rays`] asks for a ray's data.
-const CLIP_PREFETCH: usize = 8;
 
 /// Leaves with at most this many triangles gather them into groups of four.
 const LEAF4_MAX: usize = 64;
@@ -78,11 +97,15 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         given: Given,
     ) {
         self.st.nodes += 1;
-        let rays_scale = |recs: &[Rec]| recs.iter().fold(0.0f32, |m, r| m.max(r.s));
+        let rays_scale = |recs: &[Rec]| recs.iter().fold(0.0f32, |m, r| m.max(r.scale()));
         let (b, s_rays, culls) = match given {
             Given::Rays => {
                 let recs = &self.recs[r0..r1];
-                (Bound5::of(recs.iter().map(|r| &r.p)), rays_scale(recs), true)
+                let mut b = Bound5::EMPTY;
+                for r in recs {
+                    b.add(&r.point());
+                }
+                (b, rays_scale(recs), true)
             }
             Given::Uncut(b) => (b, rays_scale(&self.recs[r0..r1]), false),
             Given::Bound(b, s) => (b, s, true),
@@ -192,7 +215,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let recs = &mut self.recs[r0..r1];
         let mut k = 0;
         for p in 0..recs.len() {
-            let low = recs[p].p[dim] <= mid;
+            let low = recs[p].point()[dim] <= mid;
             recs.swap(k, p);
             k += low as usize;
         }
@@ -203,154 +226,6 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         self.node(g, r0, r0 + k, nt, depth + 1, Given::Rays);
         self.node(g, r0 + k, r1, nt, depth + 1, Given::Rays);
         true
-    }
-
-    /// The hybrid's box split (`space=box`): the triangles are split at the middle of their
-    /// centroids' longest extent into two disjoint sets, the one the rays meet first (by the
-    /// bundle's sign on that axis, or the sign of the middle slope) taken first; each child
-    /// keeps the rays whose slab interval in its triangles' union box, clipped to `[tmin,
-    /// best]`, is not empty, with their origins moved to that interval's entry (exact:
-    /// `geom::ray5d`, "Clipped origins"), and culls its triangles against the tighter bound of
-    /// those clipped rays. The second child re-clips from the batch's rays, so the first child's
-    /// clips never reach it. False when the centroids do not spread.
-    fn box_split(
-        &mut self,
-        g: usize,
-        r0: usize,
-        r1: usize,
-        nt: usize,
-        depth: u32,
-        b: &Bound5,
-    ) -> bool {
-        let boxes = self.boxes;
-        // Centroids doubled (`lo + hi`): only their order matters.
-        let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for &t in &self.tri_idx[..nt] {
-            let bx = &boxes[t as usize];
-            let c = Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
-            clo = clo.min(c);
-            chi = chi.max(c);
-        }
-        let ext = chi - clo;
-        let a = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
-        if !(ext[a] > 0.0) {
-            return false;
-        }
-        let plane = clo[a] + ext[a] * 0.5;
-        // Rays moving towards +a meet the low side first.
-        let (k, s, i, _) = axes(g);
-        let up = if a == k {
-            s > 0.0
-        } else {
-            let d = if a == i { 3 } else { 4 };
-            b.lo[d] + b.hi[d] >= 0.0
-        };
-        let idx = &mut self.tri_idx[..nt];
-        let (mut n1, mut lo1, mut hi1) = (0, Vec3::INFINITY, Vec3::NEG_INFINITY);
-        let (mut lo2, mut hi2) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for p in 0..nt {
-            let bx = &boxes[idx[p] as usize];
-            let (lo, hi) = (Vec3::new(bx[0], bx[1], bx[2]), Vec3::new(bx[3], bx[4], bx[5]));
-            let first = (bx[a] + bx[3 + a] <= plane) == up;
-            if first {
-                (lo1, hi1) = (lo1.min(lo), hi1.max(hi));
-            } else {
-                (lo2, hi2) = (lo2.min(lo), hi2.max(hi));
-            }
-            idx.swap(n1, p);
-            n1 += first as usize;
-        }
-        if n1 == 0 || n1 == nt {
-            return false;
-        }
-        self.st.box_splits += 1;
-        let (k1, given) = self.clip_rays(r0, r1, lo1, hi1);
-        if k1 > r0 {
-            self.node(g, r0, k1, n1, depth + 1, given);
-        }
-        // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
-        let n2 = gather_block(&mut self.tri_idx, 0, n1, nt);
-        let (k2, given) = self.clip_rays(r0, r1, lo2, hi2);
-        if k2 > r0 {
-            self.node(g, r0, k2, n2, depth + 1, given);
-        }
-        true
-    }
-
-    /// Moves the rays of `recs[r0..r1]` that can hit a triangle inside the box `[lo, hi]`
-    /// before their best hit to the front of the range, their origins clipped to the box
-    /// (`geom::ray5d::clip`), and bounds them; returns the end of the kept rays and their
-    /// bound. The clipped origins are kept only when their box is smaller (the sum of its
-    /// extents) than the original origins' (rays from one point, a camera's, are bound
-    /// tighter by their apex than by their entry points); otherwise the records get their
-    /// original origins back.
-    fn clip_rays(&mut self, r0: usize, r1: usize, lo: Vec3, hi: Vec3) -> (usize, Given) {
-        let (mut orig, mut clipped) = (Bound5::EMPTY, Bound5::EMPTY);
-        let mut s_rays = 0.0f32;
-        let mut q = r0;
-        for p in r0..r1 {
-            if p + CLIP_PREFETCH < r1 {
-                self.prefetch_ray(self.recs[p + CLIP_PREFETCH].id as usize);
-            }
-            let id = self.recs[p].id as usize;
-            let i = self.base + id;
-            let best = if ANY {
-                if self.occ[id] {
-                    f32::NEG_INFINITY
-                } else {
-                    self.rays.tmax[i]
-                }
-            } else {
-                self.t[id]
-            };
-            let (o, d) = (self.rays.origin(i), self.rays.dir(i));
-            let kept = match clip(o, d, lo, hi, self.rays.tmin[i], best) {
-                Some(oc) => {
-                    let r = &mut self.recs[p];
-                    r.p[..3].copy_from_slice(&oc.to_array());
-                    clipped.add(&r.p);
-                    orig.add(&[o.x, o.y, o.z, r.p[3], r.p[4]]);
-                    s_rays = s_rays.max(r.s);
-                    true
-                }
-                None => false,
-            };
-            self.recs.swap(q, p);
-            q += kept as usize;
-        }
-        self.st.clipped_out += (r1 - q) as u64;
-        if orig.origin_extent() <= clipped.origin_extent() {
-            for r in &mut self.recs[r0..q] {
-                let o = self.rays.origin(self.base + r.id as usize);
-                r.p[..3].copy_from_slice(&o.to_array());
-            }
-            return (q, Given::Bound(orig, s_rays));
-        }
-        self.st.clips += 1;
-        (q, Given::Bound(clipped, s_rays))
-    }
-
-    /// Asks for ray `id`'s scattered data (the batch's arrays are in ray order, the records
-    /// in node order).
-    #[inline(always)]
-    fn prefetch_ray(&self, id: usize) {
-        let i = self.base + id;
-        let r = self.rays;
-        for a in [&r.ox, &r.oy, &r.oz, &r.dx, &r.dy, &r.dz, &r.tmin] {
-            prefetch(a, i);
-        }
-        if ANY {
-            prefetch(self.occ, id);
-            prefetch(&r.tmax, i);
-        } else {
-            prefetch(self.t, id);
-        }
     }
 
     /// The hybrid's spatial split along bundle `g`'s major axis `k` (sign `s`): triangles whose
@@ -435,7 +310,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         for rec in &self.recs[r0..r1] {
             let id = rec.id as usize;
             let i = self.base + id;
-            let (o, d, tmin) = (self.rays.origin(i), self.rays.dir(i), self.rays.tmin[i]);
+            let (o, d, tmin) = (Vec3::from(rec.o), Vec3::from(rec.d), rec.tmin);
             let mut n = 0u64;
             if ANY {
                 if self.occ[id] {
@@ -506,7 +381,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 /// Keeps (moves to the front of `idx`, branch-free Lomuto) the triangles whose boxes `keeps`
 /// accepts; returns how many.
 #[inline(always)]
-fn filter(idx: &mut [u32], boxes: &[[f32; 6]], keeps: impl Fn(&[f32; 3], &[f32; 3]) -> bool) -> usize {
+fn filter(
+    idx: &mut [u32],
+    boxes: &[[f32; 6]],
+    keeps: impl Fn(&[f32; 3], &[f32; 3]) -> bool,
+) -> usize {
     let mut k = 0;
     for p in 0..idx.len() {
         let bx = &boxes[idx[p] as usize];

@@ -2,8 +2,9 @@
 //! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
 
 use super::rec::{Given, Rec, Task};
-use super::{Counts, Dacrt5d, Scratch};
+use super::{Counts, Dacrt5d, Scratch, Space};
 use crate::geom::ray5d::{classify, GROUPS, UNBOUNDED};
+use crate::geom::Vec3;
 use crate::rays::{RayBatch, MISS};
 use crate::scene::Scene;
 use crate::tracer::{CostMut, Tally};
@@ -72,11 +73,16 @@ impl Dacrt5d {
         let mut next = start;
         task.recs.resize(len, Rec::default());
         for i in range.clone() {
-            let (g, p) = classify(rays.origin(i), rays.dir(i), rays.tmin[i]);
+            let (o, d, tmin) = (rays.origin(i), rays.dir(i), rays.tmin[i]);
+            let (g, p) = classify(o, d, tmin);
             task.recs[next[g]] = Rec {
-                p,
-                s: rays.origin(i).abs().max_element(),
+                o: o.to_array(),
+                d: d.to_array(),
+                tmin,
+                t0: 0.0,
+                uv: [p[3], p[4]],
                 id: (i - base) as u32,
+                g: g as u32,
             };
             next[g] += 1;
         }
@@ -90,9 +96,15 @@ impl Dacrt5d {
         );
         let nlive = task.tri_idx.len();
         if nlive > 0 {
-            for g in 0..UNBOUNDED {
-                if start[g] < start[g + 1] {
-                    task.node(g, start[g], start[g + 1], nlive, 0, Given::Rays);
+            if self.cfg.spatial && self.cfg.space == Space::Box {
+                // Box splits above the bundles first (`space.rs`).
+                let (lo, hi) = (Vec3::from(self.bounds[0]), Vec3::from(self.bounds[1]));
+                task.top(0, start[UNBOUNDED], nlive, 0, lo, hi);
+            } else {
+                for g in 0..UNBOUNDED {
+                    if start[g] < start[g + 1] {
+                        task.node(g, start[g], start[g + 1], nlive, 0, Given::Rays);
+                    }
                 }
             }
             if start[UNBOUNDED] < len {

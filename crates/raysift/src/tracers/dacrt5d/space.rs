@@ -1,0 +1,291 @@
+//! The hybrid's box splits (`space=box`, ours): object splits of a node's triangles with each
+//! child's rays clipped to its triangles' box, inside a bundle ([`Task::box_split`]) and above
+//! the bundles ([`Task::top`]), where the rays of all six bundles share the splits until the
+//! bundles' own bounds can cull.
+//!
+//! Why above the bundles: rays with origins all over the scene (random rays, bounces) have
+//! bundle bounds that hold the whole scene, so each of the six bundles would make the same
+//! splits of the same triangles (six times the work of one on-the-fly BVH) before its
+//! clipped bounds start to cull. [`Task::top`] makes those splits once for every bundle, and
+//! hands a child's rays to their bundles when its triangles no longer outnumber the largest
+//! bundle's rays `spatial_ratio` times (rays from one point, a camera's, hand over at once).
+//!
+//! Exactness: a child keeps the rays whose slab interval in its triangles' union box, clipped
+//! to `[tmin, best]`, is not empty, and moves their origins to that interval's entry
+//! (`geom::ray5d::clip`, "Clipped origins"); the children's triangles are disjoint, so each
+//! pair is tested in the one child holding the triangle, and the z-buffer makes any order of
+//! the children exact.
+
+use super::rec::{Given, Task};
+use crate::geom::ray5d::{axes, clip, Bound5, UNBOUNDED};
+use crate::geom::Vec3;
+use crate::tracers::dacrt::partition::{gather_block, prefetch};
+
+/// How many rays ahead [`Task::clip_rays`] asks for a ray's data.
+const CLIP_PREFETCH: usize = 8;
+
+/// Bundles (the bounded groups).
+const BUNDLES: usize = UNBOUNDED;
+
+/// Per bundle: the rays' bound and original origins' scale after a clip pass (`None`: no rays).
+pub(super) type Bounds = [Option<(Bound5, f32)>; BUNDLES];
+
+/// A split of a node's triangles into two disjoint sets (the first at the front of the list).
+struct TriSplit {
+    /// How many triangles the first set holds.
+    n1: usize,
+    /// The sets' union boxes.
+    lo1: Vec3,
+    hi1: Vec3,
+    lo2: Vec3,
+    hi2: Vec3,
+}
+
+impl<const ANY: bool> Task<'_, ANY> {
+    /// The hybrid's box split inside bundle `g`: the triangles are split at the middle of their
+    /// centroids' longest extent into two disjoint sets, the one the rays meet first (by the
+    /// bundle's sign on that axis, or the sign of the middle slope) taken first; each child
+    /// keeps the rays that can hit one of its triangles before their best hit, bounded from
+    /// their entry into its triangles' box, and culls its triangles against that bound. The
+    /// second child re-clips from the batch's rays, so the first child's clips never reach it.
+    /// False when the centroids do not spread.
+    pub(super) fn box_split(
+        &mut self,
+        g: usize,
+        r0: usize,
+        r1: usize,
+        nt: usize,
+        depth: u32,
+        b: &Bound5,
+    ) -> bool {
+        let (k, s, i, _) = axes(g);
+        let Some(sp) = self.split_tris(nt, |a| {
+            if a == k {
+                s > 0.0
+            } else {
+                let d = if a == i { 3 } else { 4 };
+                b.lo[d] + b.hi[d] >= 0.0
+            }
+        }) else {
+            return false;
+        };
+        self.st.box_splits += 1;
+        let k1 = self.clip_rays(r0, r1, sp.lo1, sp.hi1);
+        if let Some((b1, s1)) = self.bound_rays(r0, k1)[g] {
+            self.node(g, r0, k1, sp.n1, depth + 1, Given::Bound(b1, s1));
+        }
+        // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
+        let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
+        let k2 = self.clip_rays(r0, r1, sp.lo2, sp.hi2);
+        if let Some((b2, s2)) = self.bound_rays(r0, k2)[g] {
+            self.node(g, r0, k2, n2, depth + 1, Given::Bound(b2, s2));
+        }
+        true
+    }
+
+    /// Above the bundles: rays `recs[r0..r1]` of any bundle, triangles `tri_idx[..nt]` inside
+    /// the box `[lo, hi]`. A bundle takes over its rays (its own recursion, on the same
+    /// triangles) when its rays' origin box is small against the triangles' box (extent sums,
+    /// `hand_over`: rays from one point at once) or when the node cannot be split further
+    /// (`leaf_tris`, `max_depth`); the other rays go on through box splits shared by all their
+    /// bundles. (Handing a bundle over also when the triangles no longer outnumber its rays
+    /// `spatial_ratio` times was measured: Sponza's shadow rays 0.80× the time, its random and
+    /// bounce rays 1.22×; BENCHMARKS.md § "dacrt5d: box splits".)
+    pub(super) fn top(&mut self, r0: usize, r1: usize, nt: usize, depth: u32, lo: Vec3, hi: Vec3) {
+        let bounds = self.bound_rays(r0, r1);
+        let mut count = [0usize; BUNDLES];
+        for r in &self.recs[r0..r1] {
+            count[r.g as usize] += 1;
+        }
+        let reach = self.cfg.hand_over * (hi - lo).element_sum();
+        let splittable = depth < self.cfg.max_depth && nt > self.cfg.leaf_tris;
+        let mut hand = [false; BUNDLES];
+        for g in 0..BUNDLES {
+            if let Some((b, _)) = bounds[g] {
+                #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN extents hand over
+                let small = !(b.origin_extent() > reach);
+                hand[g] = !splittable || small;
+            }
+        }
+        let mut start = self.hand_over(&hand, &bounds, r0, r1, nt, depth);
+        if start == r1 {
+            return;
+        }
+        // Rays meet the low side first when more of them move towards +axis.
+        let Some(sp) = self.split_tris(nt, |a| count[2 * a] >= count[2 * a + 1]) else {
+            start = self.hand_over(&[true; BUNDLES], &bounds, start, r1, nt, depth);
+            debug_assert_eq!(start, r1);
+            return;
+        };
+        self.st.top_splits += 1;
+        let k1 = self.clip_rays(start, r1, sp.lo1, sp.hi1);
+        if k1 > start {
+            self.top(start, k1, sp.n1, depth + 1, sp.lo1, sp.hi1);
+        }
+        // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
+        let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
+        let k2 = self.clip_rays(start, r1, sp.lo2, sp.hi2);
+        if k2 > start {
+            self.top(start, k2, n2, depth + 1, sp.lo2, sp.hi2);
+        }
+    }
+
+    /// Starts the recursion of each bundle `g` with `hand[g]` on its rays of `recs[r0..r1]`
+    /// (moved to the front, bundle by bundle) and the triangles `tri_idx[..nt]`; returns where
+    /// the other rays start.
+    fn hand_over(
+        &mut self,
+        hand: &[bool; BUNDLES],
+        bounds: &Bounds,
+        r0: usize,
+        r1: usize,
+        nt: usize,
+        depth: u32,
+    ) -> usize {
+        let mut start = r0;
+        for g in 0..BUNDLES {
+            let Some((b, s)) = bounds[g].filter(|_| hand[g]) else {
+                continue;
+            };
+            let recs = &mut self.recs[start..r1];
+            let mut q = 0;
+            for p in 0..recs.len() {
+                let here = recs[p].g as usize == g;
+                recs.swap(q, p);
+                q += here as usize;
+            }
+            self.node(g, start, start + q, nt, depth, Given::Bound(b, s));
+            start += q;
+        }
+        start
+    }
+
+    /// Splits `tri_idx[..nt]` at the middle of the centroids' longest extent; `up(axis)` tells
+    /// whether the rays move towards `+axis` (then the low side is the first set). `None` when
+    /// the centroids do not spread or one side is empty.
+    fn split_tris(&mut self, nt: usize, up: impl Fn(usize) -> bool) -> Option<TriSplit> {
+        let boxes = self.boxes;
+        // Centroids doubled (`lo + hi`): only their order matters.
+        let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &t in &self.tri_idx[..nt] {
+            let bx = &boxes[t as usize];
+            let c = Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
+            clo = clo.min(c);
+            chi = chi.max(c);
+        }
+        let ext = chi - clo;
+        let a = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        if !(ext[a] > 0.0) {
+            return None;
+        }
+        let plane = clo[a] + ext[a] * 0.5;
+        let up = up(a);
+        let idx = &mut self.tri_idx[..nt];
+        let (mut n1, mut lo1, mut hi1) = (0, Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let (mut lo2, mut hi2) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for p in 0..nt {
+            let bx = &boxes[idx[p] as usize];
+            let (lo, hi) = (
+                Vec3::new(bx[0], bx[1], bx[2]),
+                Vec3::new(bx[3], bx[4], bx[5]),
+            );
+            let first = (bx[a] + bx[3 + a] <= plane) == up;
+            if first {
+                (lo1, hi1) = (lo1.min(lo), hi1.max(hi));
+            } else {
+                (lo2, hi2) = (lo2.min(lo), hi2.max(hi));
+            }
+            idx.swap(n1, p);
+            n1 += first as usize;
+        }
+        (n1 > 0 && n1 < nt).then_some(TriSplit {
+            n1,
+            lo1,
+            hi1,
+            lo2,
+            hi2,
+        })
+    }
+
+    /// Moves the rays of `recs[r0..r1]` that can hit a triangle inside the box `[lo, hi]`
+    /// before their best hit to the front of the range, with their entry into the box as `t0`
+    /// (`geom::ray5d::clip`); returns the end of the kept rays. [`Task::bound_rays`] bounds
+    /// them.
+    pub(super) fn clip_rays(&mut self, r0: usize, r1: usize, lo: Vec3, hi: Vec3) -> usize {
+        let mut q = r0;
+        for p in r0..r1 {
+            if p + CLIP_PREFETCH < r1 {
+                self.prefetch_best(self.recs[p + CLIP_PREFETCH].id as usize);
+            }
+            let r = &mut self.recs[p];
+            let id = r.id as usize;
+            let best = if ANY {
+                if self.occ[id] {
+                    f32::NEG_INFINITY
+                } else {
+                    self.rays.tmax[self.base + id]
+                }
+            } else {
+                self.t[id]
+            };
+            let t0 = clip(Vec3::from(r.o), Vec3::from(r.d), lo, hi, r.tmin, best);
+            r.t0 = t0.unwrap_or(0.0);
+            self.recs.swap(q, p);
+            q += t0.is_some() as usize;
+        }
+        self.st.clipped_out += (r1 - q) as u64;
+        self.st.ray_clips += (r1 - r0) as u64;
+        q
+    }
+
+    /// The bounds per bundle of clipped rays `recs[r0..r1]`: a bundle keeps its clipped
+    /// origins only when their box is smaller (the sum of its extents) than its original
+    /// origins' (rays from one point, a camera's, are bound tighter by their apex than by their
+    /// entry points); otherwise its records go back to `t0 = 0`.
+    pub(super) fn bound_rays(&mut self, r0: usize, r1: usize) -> Bounds {
+        let (mut orig, mut clipped) = ([Bound5::EMPTY; BUNDLES], [Bound5::EMPTY; BUNDLES]);
+        let mut s_rays = [0.0f32; BUNDLES];
+        for r in &self.recs[r0..r1] {
+            let g = r.g as usize;
+            clipped[g].add(&r.point());
+            orig[g].add(&[r.o[0], r.o[1], r.o[2], r.uv[0], r.uv[1]]);
+            s_rays[g] = s_rays[g].max(r.scale());
+        }
+        let mut restore = [false; BUNDLES];
+        let mut out: Bounds = [None; BUNDLES];
+        for g in 0..BUNDLES {
+            if orig[g].lo[0] > orig[g].hi[0] {
+                continue;
+            }
+            restore[g] = orig[g].origin_extent() <= clipped[g].origin_extent();
+            out[g] = Some((if restore[g] { orig[g] } else { clipped[g] }, s_rays[g]));
+            self.st.clips += (!restore[g]) as u64;
+        }
+        if restore.iter().any(|&r| r) {
+            for r in &mut self.recs[r0..r1] {
+                if restore[r.g as usize] {
+                    r.t0 = 0.0;
+                }
+            }
+        }
+        out
+    }
+
+    /// Asks for the best hit so far of ray `id` (the z-buffer is in ray order, the records in
+    /// node order).
+    #[inline(always)]
+    fn prefetch_best(&self, id: usize) {
+        if ANY {
+            prefetch(self.occ, id);
+            prefetch(&self.rays.tmax, self.base + id);
+        } else {
+            prefetch(self.t, id);
+        }
+    }
+}
