@@ -151,34 +151,55 @@ fn stats(s: &Scene, rays: &RayBatch, kv: &[(&str, &str)]) -> Stats {
     st
 }
 
-/// Each option does what it says in the counters: the chosen cull runs (and culls: fewer
-/// ray/triangle tests than naive's R·T), spatial splits (box splits, or major-axis cuts that
-/// terminate rays early) happen only when on, the fixed stop differs from the cost stop.
-/// Random rays (origins all over the scene): box splits shared by all bundles, then bounds from
-/// the rays' entry points into each child's box, and the leaves test far fewer pairs than with
-/// major-axis cuts, where a node of 16 rays or fewer is a leaf with all its triangles.
+/// Random rays (origins all over the scene) share box splits above the bundles and their leaves
+/// test far fewer pairs than with major-axis cuts, where a node of 16 rays or fewer is a leaf
+/// with all its triangles; rays from one point go to their bundle at once (no shared split);
+/// rays from a small region go to their bundles, whose box splits bound them from their entry
+/// points into each child's box once that box is smaller than the region.
 #[test]
 fn box_splits_clip_incoherent_rays() {
     let s = procedural::icosphere(5120);
     let rays = random_in_box(&s.bounds(), 4000, 3);
     let b = stats(&s, &rays, &[]);
     let m = stats(&s, &rays, &[("space", "major")]);
-    assert!(
-        b.work.get("clips") > 0 && b.work.get("top_splits") > 0,
-        "{:?}",
-        b.work
-    );
-    // Rays from one point go to their bundles at once: no shared splits.
-    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(48, 48);
-    assert_eq!(stats(&s, &cam, &[]).work.get("top_splits"), 0);
+    assert!(b.work.get("top_splits") > 0, "{:?}", b.work);
     assert!(
         b.work.get("ray_tri") * 5 < m.work.get("ray_tri"),
         "box {} vs major {}",
         b.work.get("ray_tri"),
         m.work.get("ray_tri")
     );
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(48, 48);
+    assert_eq!(stats(&s, &cam, &[]).work.get("top_splits"), 0);
+    // Origins in a box a tenth of the scene's, beside it; directions all over.
+    let bb = s.bounds();
+    let e = bb.extent();
+    let corner = bb.min - e * 0.15;
+    let region = raysift::geom::Aabb::new(corner, corner + e * 0.1);
+    let mut near = random_in_box(&region, 3000, 4);
+    for i in 0..near.len() {
+        // Aim at random points of the scene's box, so every ray crosses it.
+        let k = (i * 7919) % 1000;
+        let target = bb.min
+            + e * glam::Vec3::new(
+                k as f32 / 1000.0,
+                ((k * 37) % 1000) as f32 / 1000.0,
+                ((k * 91) % 1000) as f32 / 1000.0,
+            );
+        let d = target - near.origin(i);
+        (near.dx[i], near.dy[i], near.dz[i]) = (d.x, d.y, d.z);
+    }
+    let c = stats(&s, &near, &[]);
+    assert!(
+        c.work.get("clips") > 0 && c.work.get("box_splits") > 0 && c.work.get("top_splits") == 0,
+        "{:?}",
+        c.work
+    );
 }
 
+/// Each option does what it says in the counters: the chosen cull runs (and culls: fewer
+/// ray/triangle tests than naive's R·T), spatial splits (box splits, or major-axis cuts that
+/// terminate rays early) happen only when on, the fixed stop differs from the cost stop.
 #[test]
 fn options_show_in_the_counters() {
     let s = procedural::icosphere(5120);

@@ -98,8 +98,11 @@ impl Dacrt5d {
         if nlive > 0 {
             if self.cfg.spatial && self.cfg.space == Space::Box {
                 // Box splits above the bundles first (`space.rs`).
-                let (lo, hi) = (Vec3::from(self.bounds[0]), Vec3::from(self.bounds[1]));
-                task.top(0, start[UNBOUNDED], nlive, 0, lo, hi);
+                let scene_box = (Vec3::from(self.bounds[0]), Vec3::from(self.bounds[1]));
+                let up = [0, 1, 2].map(|a| {
+                    start[2 * a + 1] - start[2 * a] >= start[2 * a + 2] - start[2 * a + 1]
+                });
+                task.top(0, start[UNBOUNDED], nlive, 0, scene_box, up);
             } else {
                 for g in 0..UNBOUNDED {
                     if start[g] < start[g + 1] {

@@ -84,49 +84,59 @@ impl<const ANY: bool> Task<'_, ANY> {
     }
 
     /// Above the bundles: rays `recs[r0..r1]` of any bundle, triangles `tri_idx[..nt]` inside
-    /// the box `[lo, hi]`. A bundle takes over its rays (its own recursion, on the same
-    /// triangles) when its rays' origin box is small against the triangles' box (extent sums,
-    /// `hand_over`: rays from one point at once) or when the node cannot be split further
-    /// (`leaf_tris`, `max_depth`); the other rays go on through box splits shared by all their
-    /// bundles. (Handing a bundle over also when the triangles no longer outnumber its rays
-    /// `spatial_ratio` times was measured: Sponza's shadow rays 0.80× the time, its random and
-    /// bounce rays 1.22×; BENCHMARKS.md § "dacrt5d: box splits".)
-    pub(super) fn top(&mut self, r0: usize, r1: usize, nt: usize, depth: u32, lo: Vec3, hi: Vec3) {
-        let bounds = self.bound_rays(r0, r1);
-        let mut count = [0usize; BUNDLES];
-        for r in &self.recs[r0..r1] {
-            count[r.g as usize] += 1;
-        }
-        let reach = self.cfg.hand_over * (hi - lo).element_sum();
-        let splittable = depth < self.cfg.max_depth && nt > self.cfg.leaf_tris;
-        let mut hand = [false; BUNDLES];
-        for g in 0..BUNDLES {
-            if let Some((b, _)) = bounds[g] {
-                #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN extents hand over
-                let small = !(b.origin_extent() > reach);
-                hand[g] = !splittable || small;
+    /// the box `[lo, hi]`; `up[a]`: most rays move towards `+a` (the near child first). At the
+    /// root, each bundle whose origins' box is small against the scene's (extent sums,
+    /// `hand_over`: rays from one point) takes its rays into its own recursion on every
+    /// triangle. The other rays share box splits down to nodes of `leaf_tris` triangles (or
+    /// `max_depth`), whose leaves test them all. (Handing a bundle over deeper, when its
+    /// clipped origins' box is small against the node's, or when the triangles no longer
+    /// outnumber its rays `spatial_ratio` times, was measured: BENCHMARKS.md § "dacrt5d: box
+    /// splits".)
+    pub(super) fn top(
+        &mut self,
+        r0: usize,
+        r1: usize,
+        nt: usize,
+        depth: u32,
+        (lo, hi): (Vec3, Vec3),
+        up: [bool; 3],
+    ) {
+        let mut start = r0;
+        if depth == 0 {
+            let bounds = self.bound_rays(r0, r1);
+            let reach = self.cfg.hand_over * (hi - lo).element_sum();
+            let mut hand = [false; BUNDLES];
+            for g in 0..BUNDLES {
+                if let Some((b, _)) = bounds[g] {
+                    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN extents hand over
+                    let small = !(b.origin_extent() > reach);
+                    hand[g] = small;
+                }
+            }
+            start = self.hand_over(&hand, &bounds, r0, r1, nt, depth);
+            if start == r1 {
+                return;
             }
         }
-        let mut start = self.hand_over(&hand, &bounds, r0, r1, nt, depth);
-        if start == r1 {
-            return;
-        }
-        // Rays meet the low side first when more of them move towards +axis.
-        let Some(sp) = self.split_tris(nt, |a| count[2 * a] >= count[2 * a + 1]) else {
-            start = self.hand_over(&[true; BUNDLES], &bounds, start, r1, nt, depth);
-            debug_assert_eq!(start, r1);
+        let split = if depth < self.cfg.max_depth && nt > self.cfg.leaf_tris {
+            self.split_tris(nt, |a| up[a])
+        } else {
+            None
+        };
+        let Some(sp) = split else {
+            self.leaf(start, r1, nt);
             return;
         };
         self.st.top_splits += 1;
         let k1 = self.clip_rays(start, r1, sp.lo1, sp.hi1);
         if k1 > start {
-            self.top(start, k1, sp.n1, depth + 1, sp.lo1, sp.hi1);
+            self.top(start, k1, sp.n1, depth + 1, (sp.lo1, sp.hi1), up);
         }
         // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
         let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
         let k2 = self.clip_rays(start, r1, sp.lo2, sp.hi2);
         if k2 > start {
-            self.top(start, k2, n2, depth + 1, sp.lo2, sp.hi2);
+            self.top(start, k2, n2, depth + 1, (sp.lo2, sp.hi2), up);
         }
     }
 
