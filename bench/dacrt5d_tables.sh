@@ -15,14 +15,15 @@ run() { echo; echo "### $*"; echo; echo '```text'; echo "dacrt5d_bench $*"; echo
   # Culls, stops and the two hybrids on the bunny (the first hybrid's random rays are slow).
   run "$S/bun_zipper.ply" --width 256 --random 65536 --bounces 3 --repeat 2 --threads 1 \
     --tracer bvh --tracer dacrt --tracer dacrt5d --tracer "dacrt5d cull=cone" \
-    --tracer "dacrt5d stop=fixed" --tracer "dacrt5d space=major" --tracer "dacrt5d spatial=false"
+    --tracer "dacrt5d stop=fixed" --tracer "dacrt5d hand_over=1000" --tracer "dacrt5d space=major" \
+    --tracer "dacrt5d spatial=false"
   # Sponza from inside (bench/common.py's preset camera and light), then the dragon.
   for sc in sponza.obj.gz dragon_vrip.ply.gz; do
     cam=()
     [ "$sc" = sponza.obj.gz ] && cam=(--eye -13,2.5,0 --look 10,4.5,0 --fov 60 --light 0,12,0)
     run "$S/$sc" --width 256 --random 65536 --bounces 3 --repeat 2 --threads 1 "${cam[@]}" \
       --tracer bvh --tracer dacrt --tracer dacrt5d --tracer "dacrt5d cull=cone" \
-      --tracer "dacrt5d stop=fixed" --tracer "dacrt5d space=major"
+      --tracer "dacrt5d stop=fixed" --tracer "dacrt5d hand_over=1000" --tracer "dacrt5d space=major"
   done
   # The cost stop's constants (the post's C_r, C_g; the author's 16/16 is the default).
   for sc in bun_zipper.ply sponza.obj.gz; do

@@ -103,6 +103,8 @@ const MAX_POOLED: usize = 64;
 struct Scratch {
     tri_idx: Vec<u32>,
     recs: Vec<Rec>,
+    pk: Vec<crate::geom::PackedRay>,
+    pid: Vec<u32>,
 }
 
 /// The tracer: the options and each triangle's box.
@@ -323,7 +325,10 @@ impl Tracer for Dacrt5d {
             .iter()
             .map(|m| {
                 m.lock().map_or(0, |g| {
-                    g.tri_idx.capacity() * 4 + g.recs.capacity() * std::mem::size_of::<Rec>()
+                    g.tri_idx.capacity() * 4
+                        + g.recs.capacity() * std::mem::size_of::<Rec>()
+                        + g.pk.capacity() * std::mem::size_of::<crate::geom::PackedRay>()
+                        + g.pid.capacity() * 4
                 })
             })
             .sum();

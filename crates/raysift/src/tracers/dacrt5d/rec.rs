@@ -5,7 +5,7 @@
 
 use super::{Config, Counts, Cull, Space, Stop};
 use crate::geom::ray5d::{axes, moved, Bound5, Cone5, Frustum5, DELTA};
-use crate::geom::{intersect_triangle, intersect_triangle4, Tri4, Vec3};
+use crate::geom::{intersect_triangle, intersect_triangle4, PackedRay, Tri4, Vec3};
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
@@ -57,7 +57,7 @@ pub(super) enum Given {
 }
 
 /// Leaves with at most this many triangles gather them into groups of four.
-const LEAF4_MAX: usize = 64;
+pub(super) const LEAF4_MAX: usize = 64;
 
 /// One task: a share of the rays with its own lists.
 pub(super) struct Task<'a, const ANY: bool> {
@@ -77,6 +77,10 @@ pub(super) struct Task<'a, const ANY: bool> {
     pub(super) tri_idx: Vec<u32>,
     /// The share's rays, grouped by bundle; a node's are a range.
     pub(super) recs: Vec<Rec>,
+    /// The rays of the box splits above the bundles, packed for the slab test (origin, `tmin`,
+    /// `1/d`, best hit so far), and their records' places in `recs` (`space.rs`).
+    pub(super) pk: Vec<PackedRay>,
+    pub(super) pid: Vec<u32>,
     /// The scene's largest coordinate magnitude and 1 / its largest extent.
     pub(super) scale: f32,
     pub(super) inv_extent: f32,
@@ -295,46 +299,64 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// The naive leaf: rays `recs[r0..r1]` against triangles `tri_idx[..nt]`.
     pub(super) fn leaf(&mut self, r0: usize, r1: usize, nt: usize) {
         self.st.leaves += 1;
+        let (groups, ng) = self.leaf_groups(nt);
+        let groups = (nt <= LEAF4_MAX).then_some(&groups[..ng]);
+        let mut tests = 0u64;
+        for p in r0..r1 {
+            let rec = self.recs[p];
+            tests += self.leaf_ray(&rec, groups, nt);
+        }
+        self.st.ray_tri += tests;
+    }
+
+    /// A leaf's triangles in groups of four, when they are at most [`LEAF4_MAX`] (else `0`
+    /// groups: the scalar test).
+    pub(super) fn leaf_groups(&self, nt: usize) -> ([Tri4; LEAF4_MAX / 4], usize) {
         let tris = self.tris;
         let mut groups = [Tri4::default(); LEAF4_MAX / 4];
-        let four = nt <= LEAF4_MAX;
-        if four {
-            for (q, &t) in self.tri_idx[..nt].iter().enumerate() {
-                let t = t as usize;
-                groups[q / 4].set(q % 4, tris.v0[t], tris.v1[t], tris.v2[t]);
-            }
+        if nt > LEAF4_MAX {
+            return (groups, 0);
         }
-        let ng = if four { nt.div_ceil(4) } else { 0 };
-        let (groups, ids) = (&groups[..ng], &self.tri_idx[..nt]);
-        let mut tests = 0u64;
-        for rec in &self.recs[r0..r1] {
-            let id = rec.id as usize;
-            let i = self.base + id;
-            let (o, d, tmin) = (Vec3::from(rec.o), Vec3::from(rec.d), rec.tmin);
-            let mut n = 0u64;
-            if ANY {
-                if self.occ[id] {
-                    continue;
-                }
-                let tmax = self.rays.tmax[i];
-                let hit = if four {
-                    groups.iter().any(|g4| {
-                        n += 4;
-                        intersect_triangle4(o, d, g4, tmin, tmax).mask != 0
-                    })
-                } else {
-                    ids.iter().any(|&t| {
-                        n += 1;
-                        let t = t as usize;
-                        intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax)
-                            .is_some()
-                    })
-                };
-                self.occ[id] = hit;
-            } else {
-                let (mut bt, mut bp, mut bu, mut bv) =
-                    (self.t[id], self.prim[id], self.u[id], self.v[id]);
-                if four {
+        for (q, &t) in self.tri_idx[..nt].iter().enumerate() {
+            let t = t as usize;
+            groups[q / 4].set(q % 4, tris.v0[t], tris.v1[t], tris.v2[t]);
+        }
+        (groups, nt.div_ceil(4))
+    }
+
+    /// One ray of a leaf against triangles `tri_idx[..nt]` (four at a time when `groups` holds
+    /// them); updates its answer and returns the pair tests made.
+    #[inline(always)]
+    pub(super) fn leaf_ray(&mut self, rec: &Rec, groups: Option<&[Tri4]>, nt: usize) -> u64 {
+        let tris = self.tris;
+        let ids = &self.tri_idx[..nt];
+        let id = rec.id as usize;
+        let i = self.base + id;
+        let (o, d, tmin) = (Vec3::from(rec.o), Vec3::from(rec.d), rec.tmin);
+        let mut n = 0u64;
+        if ANY {
+            if self.occ[id] {
+                return 0;
+            }
+            let tmax = self.rays.tmax[i];
+            let hit = match groups {
+                Some(groups) => groups.iter().any(|g4| {
+                    n += 4;
+                    intersect_triangle4(o, d, g4, tmin, tmax).mask != 0
+                }),
+                None => ids.iter().any(|&t| {
+                    n += 1;
+                    let t = t as usize;
+                    intersect_triangle(o, d, tris.v0[t], tris.v1[t], tris.v2[t], tmin, tmax)
+                        .is_some()
+                }),
+            };
+            self.occ[id] = hit;
+        } else {
+            let (mut bt, mut bp, mut bu, mut bv) =
+                (self.t[id], self.prim[id], self.u[id], self.v[id]);
+            match groups {
+                Some(groups) => {
                     for (gi, g4) in groups.iter().enumerate() {
                         let h = intersect_triangle4(o, d, g4, tmin, bt);
                         let mut m = h.mask;
@@ -348,7 +370,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                         }
                     }
                     n = 4 * groups.len() as u64;
-                } else {
+                }
+                None => {
                     for &t in ids {
                         let tu = t as usize;
                         if let Some(h) = intersect_triangle(
@@ -367,14 +390,13 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                     }
                     n = nt as u64;
                 }
-                (self.t[id], self.prim[id], self.u[id], self.v[id]) = (bt, bp, bu, bv);
             }
-            tests += n;
-            if let Some(c) = self.cost.as_mut() {
-                c.add(id, 0, n, n);
-            }
+            (self.t[id], self.prim[id], self.u[id], self.v[id]) = (bt, bp, bu, bv);
         }
-        self.st.ray_tri += tests;
+        if let Some(c) = self.cost.as_mut() {
+            c.add(id, 0, n, n);
+        }
+        n
     }
 }
 

@@ -33,6 +33,8 @@ impl Dacrt5d {
         let sc = slot
             .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
             .unwrap_or_default();
+        // Box splits above the bundles (`space.rs`) pack the rays they share.
+        let shared = self.cfg.spatial && self.cfg.space == Space::Box;
         let mut task = Task::<ANY> {
             cfg: &self.cfg,
             tris: scene.triangles(),
@@ -46,6 +48,8 @@ impl Dacrt5d {
             occ,
             tri_idx: reuse(sc.tri_idx, ntri, true),
             recs: reuse(sc.recs, len, true),
+            pk: reuse(sc.pk, if shared { len } else { 0 }, true),
+            pid: reuse(sc.pid, if shared { len } else { 0 }, true),
             scale: self.scale,
             inv_extent: if self.extent > 0.0 {
                 1.0 / self.extent
@@ -96,13 +100,13 @@ impl Dacrt5d {
         );
         let nlive = task.tri_idx.len();
         if nlive > 0 {
-            if self.cfg.spatial && self.cfg.space == Space::Box {
+            if shared {
                 // Box splits above the bundles first (`space.rs`).
                 let scene_box = (Vec3::from(self.bounds[0]), Vec3::from(self.bounds[1]));
                 let up = [0, 1, 2].map(|a| {
                     start[2 * a + 1] - start[2 * a] >= start[2 * a + 2] - start[2 * a + 1]
                 });
-                task.top(0, start[UNBOUNDED], nlive, 0, scene_box, up);
+                task.top(0, start[UNBOUNDED], nlive, up, scene_box.0, scene_box.1);
             } else {
                 for g in 0..UNBOUNDED {
                     if start[g] < start[g + 1] {
@@ -121,12 +125,15 @@ impl Dacrt5d {
                 }
             }
         }
-        let peak = (4 * ntri + std::mem::size_of::<Rec>() * len) as u64;
+        let packed = if shared { 36 * len } else { 0 };
+        let peak = (4 * ntri + std::mem::size_of::<Rec>() * len + packed) as u64;
         let st = task.st;
         if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
             *g = Scratch {
                 tri_idx: task.tri_idx,
                 recs: task.recs,
+                pk: task.pk,
+                pid: task.pid,
             };
         }
         Tally {

@@ -16,9 +16,9 @@
 //! pair is tested in the one child holding the triangle, and the z-buffer makes any order of
 //! the children exact.
 
-use super::rec::{Given, Task};
+use super::rec::{Given, Task, LEAF4_MAX};
 use crate::geom::ray5d::{axes, clip, Bound5, UNBOUNDED};
-use crate::geom::Vec3;
+use crate::geom::{Aabb, PackedRay, Vec3};
 use crate::tracers::dacrt::partition::{gather_block, prefetch};
 
 /// How many rays ahead [`Task::clip_rays`] asks for a ray's data.
@@ -84,60 +84,137 @@ impl<const ANY: bool> Task<'_, ANY> {
     }
 
     /// Above the bundles: rays `recs[r0..r1]` of any bundle, triangles `tri_idx[..nt]` inside
-    /// the box `[lo, hi]`; `up[a]`: most rays move towards `+a` (the near child first). At the
-    /// root, each bundle whose origins' box is small against the scene's (extent sums,
+    /// the box `[lo, hi]` (the scene's); `up[a]`: most rays move towards `+a` (the near child
+    /// first). Each bundle whose origins' box is small against the scene's (extent sums,
     /// `hand_over`: rays from one point) takes its rays into its own recursion on every
-    /// triangle. The other rays share box splits down to nodes of `leaf_tris` triangles (or
-    /// `max_depth`), whose leaves test them all. (Handing a bundle over deeper, when its
-    /// clipped origins' box is small against the node's, or when the triangles no longer
-    /// outnumber its rays `spatial_ratio` times, was measured: BENCHMARKS.md § "dacrt5d: box
-    /// splits".)
+    /// triangle. The other rays share box splits ([`Task::shared`]) down to nodes of
+    /// `leaf_tris` triangles (or `max_depth`), whose leaves test them all. (Handing a bundle
+    /// over deeper, when its clipped origins' box is small against the node's, or when the
+    /// triangles no longer outnumber its rays `spatial_ratio` times, was measured: BENCHMARKS.md
+    /// § "dacrt5d: box splits".)
     pub(super) fn top(
         &mut self,
         r0: usize,
         r1: usize,
         nt: usize,
-        depth: u32,
-        (lo, hi): (Vec3, Vec3),
         up: [bool; 3],
+        lo: Vec3,
+        hi: Vec3,
     ) {
-        let mut start = r0;
-        if depth == 0 {
-            let bounds = self.bound_rays(r0, r1);
-            let reach = self.cfg.hand_over * (hi - lo).element_sum();
-            let mut hand = [false; BUNDLES];
-            for g in 0..BUNDLES {
-                if let Some((b, _)) = bounds[g] {
-                    #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN extents hand over
-                    let small = !(b.origin_extent() > reach);
-                    hand[g] = small;
-                }
-            }
-            start = self.hand_over(&hand, &bounds, r0, r1, nt, depth);
-            if start == r1 {
-                return;
+        let bounds = self.bound_rays(r0, r1);
+        let reach = self.cfg.hand_over * (hi - lo).element_sum();
+        let mut hand = [false; BUNDLES];
+        for g in 0..BUNDLES {
+            if let Some((b, _)) = bounds[g] {
+                #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN extents hand over
+                let small = !(b.origin_extent() > reach);
+                hand[g] = small;
             }
         }
+        let start = self.hand_over(&hand, &bounds, r0, r1, nt, 0);
+        if start == r1 {
+            return;
+        }
+        // The shared rays, packed (`pk`, `pid`: their records stay where they are).
+        self.pk.clear();
+        self.pid.clear();
+        for p in start..r1 {
+            let r = &self.recs[p];
+            let id = r.id as usize;
+            let best = if ANY {
+                self.rays.tmax[self.base + id]
+            } else {
+                self.t[id]
+            };
+            let (o, d) = (Vec3::from(r.o), Vec3::from(r.d));
+            self.pk.push(PackedRay::new(o, Vec3::ONE / d, r.tmin, best));
+            self.pid.push(p as u32);
+        }
+        let n = self.pk.len();
+        self.shared(0, n, nt, 0, up);
+    }
+
+    /// Shared box splits: packed rays `pk[a..b]` (of any bundle), triangles `tri_idx[..nt]`.
+    fn shared(&mut self, a: usize, b: usize, nt: usize, depth: u32, up: [bool; 3]) {
         let split = if depth < self.cfg.max_depth && nt > self.cfg.leaf_tris {
-            self.split_tris(nt, |a| up[a])
+            self.split_tris(nt, |ax| up[ax])
         } else {
             None
         };
         let Some(sp) = split else {
-            self.leaf(start, r1, nt);
-            return;
+            return self.shared_leaf(a, b, nt);
         };
         self.st.top_splits += 1;
-        let k1 = self.clip_rays(start, r1, sp.lo1, sp.hi1);
-        if k1 > start {
-            self.top(start, k1, sp.n1, depth + 1, (sp.lo1, sp.hi1), up);
+        let k1 = self.filter_packed(a, b, &Aabb::new(sp.lo1, sp.hi1));
+        if k1 > a {
+            self.shared(a, k1, sp.n1, depth + 1, up);
         }
         // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
         let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
-        let k2 = self.clip_rays(start, r1, sp.lo2, sp.hi2);
-        if k2 > start {
-            self.top(start, k2, n2, depth + 1, (sp.lo2, sp.hi2), up);
+        let k2 = self.filter_packed(a, b, &Aabb::new(sp.lo2, sp.hi2));
+        if k2 > a {
+            self.shared(a, k2, n2, depth + 1, up);
         }
+    }
+
+    /// Moves the packed rays of `pk[a..b]` whose slab interval in `bx`, clipped to
+    /// `[tmin, best]`, is not empty to the front (four at a time: `Aabb::hit_by_packed4`, the
+    /// shared slab test's decision bit for bit); returns the end of the kept rays. Every hit on
+    /// a triangle inside `bx` lies in that interval (`geom::triangle`), so the others have none
+    /// closer than their best.
+    fn filter_packed(&mut self, a: usize, b: usize, bx: &Aabb) -> usize {
+        let (pk, pid) = (&mut self.pk[..b], &mut self.pid[..b]);
+        let (mut k, mut p) = (a, a);
+        // Four rays decided at once: the swaps at `p..p + j` touch only slots below `p + j`.
+        while p + 4 <= b {
+            let four: &[PackedRay; 4] = pk[p..p + 4].try_into().expect("four records");
+            let keep = bx.hit_by_packed4(four);
+            for j in 0..4 {
+                pk.swap(k, p + j);
+                pid.swap(k, p + j);
+                k += (keep >> j & 1) as usize;
+            }
+            p += 4;
+        }
+        for p in p..b {
+            let keep = bx.hit_by_packed(&pk[p]);
+            pk.swap(k, p);
+            pid.swap(k, p);
+            k += keep as usize;
+        }
+        self.st.ray_clips += (b - a) as u64;
+        self.st.clipped_out += (b - k) as u64;
+        k
+    }
+
+    /// The leaf of the shared splits: packed rays `pk[a..b]` against `tri_idx[..nt]`, their
+    /// best hits written back into the packed records (an occluded ray's as `-inf`: no box
+    /// keeps it).
+    fn shared_leaf(&mut self, a: usize, b: usize, nt: usize) {
+        self.st.leaves += 1;
+        let (groups, ng) = self.leaf_groups(nt);
+        let groups = (nt <= LEAF4_MAX).then_some(&groups[..ng]);
+        let mut tests = 0u64;
+        for j in a..b {
+            if j + CLIP_PREFETCH < b {
+                let r = &self.recs[self.pid[j + CLIP_PREFETCH] as usize];
+                self.prefetch_best(r.id as usize);
+            }
+            let rec = self.recs[self.pid[j] as usize];
+            tests += self.leaf_ray(&rec, groups, nt);
+            let id = rec.id as usize;
+            let best = if ANY {
+                if self.occ[id] {
+                    f32::NEG_INFINITY
+                } else {
+                    self.rays.tmax[self.base + id]
+                }
+            } else {
+                self.t[id]
+            };
+            self.pk[j].inv_tmax.w = best;
+        }
+        self.st.ray_tri += tests;
     }
 
     /// Starts the recursion of each bundle `g` with `hand[g]` on its rays of `recs[r0..r1]`
