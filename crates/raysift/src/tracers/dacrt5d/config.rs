@@ -85,6 +85,9 @@ pub struct Config {
     /// at once, rays from all over the scene (random, bounces) not until their node is small.
     /// 0 hands over only by `spatial_ratio`; a large value hands over at the root. Default 0.25.
     pub hand_over: f32,
+    /// With `space=box`: the shared splits above the bundles stop at nodes of at most this many
+    /// triangles, whose leaves test every ray that reaches them. Default 8.
+    pub shared_leaf: usize,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -107,6 +110,7 @@ impl Default for Config {
             space: Space::Box,
             leaf_tris: 32,
             hand_over: 0.25,
+            shared_leaf: 8,
             max_depth: 64,
             tasks: 0,
         }
@@ -126,6 +130,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
     OptionDoc { key: "hand_over", doc: "space=box: a bundle leaves the shared box splits when its origins' box is at most this fraction of the node's" },
+    OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
     OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
@@ -197,8 +202,12 @@ pub const PRESETS: &[Preset] = &[
         ],
     },
     Preset {
-        name: "shared box splits only (no hand-over by size)",
-        opts: &[("hand_over", "0"), ("spatial_ratio", "0.1"), ("tasks", "2")],
+        name: "shared box splits only (no hand-over by size), leaves of one",
+        opts: &[("hand_over", "0"), ("shared_leaf", "1"), ("tasks", "2")],
+    },
+    Preset {
+        name: "every bundle on its own (hand-over at the root)",
+        opts: &[("hand_over", "1e30"), ("tasks", "3")],
     },
     Preset {
         name: "box splits down to one triangle",

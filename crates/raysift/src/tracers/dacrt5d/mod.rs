@@ -9,8 +9,9 @@
 //! | `mod.rs` | [`Dacrt5d`], `impl Tracer`, counters, memory | |
 //! | `config.rs` | [`Config`]: cull, stop, constants, presets | the post's choices, ours |
 //! | `geom/ray5d.rs` (shared geometry) | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a group's 5D box, the open frustum and the cone, their exact culls, and their tests | Arvo–Kirk; the post's frustum |
-//! | `rec.rs` | the recursion: cull, cost stop or fixed limits, ray-space split, spatial splits (box splits with clipped rays; major-axis cuts with early termination), naive leaves | the post's `DACRT`, termination criterion; ours |
-//! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the bundles' recursions, results | |
+//! | `rec.rs` | a bundle's recursion: cull, cost stop or fixed limits, ray-space split, the major-axis cut with early termination, naive leaves | the post's `DACRT`, termination criterion; ours |
+//! | `space.rs` | box splits: inside a bundle (clipped rays, re-culled children), and shared by all bundles above them (packed rays) with the hand-over to the bundles | ours |
+//! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the shared splits or the bundles' recursions, results | |
 //!
 //! What implements which part of the post:
 //! - **5D classification** (`geom::ray5d::classify`): major axis = largest `|d|` (ties by strict
@@ -43,7 +44,7 @@
 //!   node whose surviving triangles outnumber its rays (`G > spatial_ratio·R`, default 2:
 //!   coherent rays, many triangles, where ray splits cannot shrink `G`) is split in *space*.
 //!   Two ways (`space`):
-//!   - `box` (default; `rec.rs`, `Task::box_split`): the triangles are split in two disjoint
+//!   - `box` (default; `space.rs`, `Task::box_split`): the triangles are split in two disjoint
 //!     sets at the middle of their centroids' longest extent (a BVH node made on the fly), the
 //!     set the rays meet first taken first; each child keeps only the rays whose slab interval
 //!     in its triangles' union box, clipped to `[tmin, best hit]`, is not empty (the shared slab
@@ -56,6 +57,19 @@
 //!     the post's stop rule no longer ends the recursion at 16 rays or fewer: a would-be leaf
 //!     with more than `leaf_tris` (32) triangles is split in space too. Measured against the
 //!     other way in BENCHMARKS.md § "dacrt5d: box splits";
+//!
+//!     With `box`, the splits start **above the bundles** (`Task::top`, `Task::shared`): at the
+//!     root, a bundle whose origins' box is small against the scene's (`hand_over`, a quarter
+//!     of the extent sums: rays from one point, a camera's or a light's) takes its rays into its
+//!     own 5D recursion at once; every other ray (random rays, bounces: origins all over the
+//!     scene, whose bundle bounds cull nothing) goes through box splits shared by all six
+//!     bundles, down to nodes of `leaf_tris` triangles whose leaves test them all. Those rays
+//!     travel as 32-byte packed records (origin, `tmin`, `1/d`, best hit so far), filtered four
+//!     at a time by the shared slab test (`Aabb::hit_by_packed4`), their best hits written back
+//!     by the leaves (an on-the-fly BVH, as Mora's DACRT with object splits). Without it each
+//!     bundle made the same splits of the same triangles (six times the work), and before
+//!     packing a clip read eight of the batch's scattered arrays: BENCHMARKS.md § "dacrt5d: box
+//!     splits";
 //!   - `major` (the first hybrid; `Task::spatial_split`): a cut along the bundle's major axis at
 //!     the mean of the triangles' near ends: the near triangles (near end at or before the
 //!     plane) are traced first with all the rays, then the rays whose best hit (or `tmax`) lies
@@ -64,7 +78,8 @@
 //!
 //!   Occlusion is any-hit: an occluded ray leaves at either split.
 //! - **Threads** (`run.rs`): rayon tasks over disjoint shares of the rays (as `dacrt`), each with
-//!   its own lists, classifying its share into the bundles and recursing on each.
+//!   its own lists, classifying its share into the bundles and recursing on each (the shared
+//!   splits too are per task).
 //! - **Shared code**: the block move of the far triangles to the prefix and the buffer reuse are
 //!   `dacrt`'s (`partition::gather_block`, `scratch::reuse`).
 //!
@@ -73,10 +88,12 @@
 //! and [`closer`](crate::tracer::closer); every cull and termination is conservative.
 //!
 //! **Memory** (deterministic, independent of the scene's shape): prepare holds `24·T` (each
-//! triangle's box); a call with `K` tasks allocates `4·T` per task (triangle ids) and `28·R`
-//! (one 28-byte record per ray: 5D point, origin scale and id), kept by the tracer for the next call (a
-//! second call of the same size allocates nothing). So `a = 24 + 4K` bytes per triangle,
-//! `b = 28` per ray; `tests/dacrt5d.rs` checks it with a counting allocator.
+//! triangle's box); a call with `K` tasks allocates `4·T` per task (triangle ids) and `48·R`
+//! (one 48-byte record per ray: origin, direction, `tmin`, `t0`, slopes, id, bundle) plus, with
+//! box splits (`spatial`, `space=box`, the default), `36·R` (a 32-byte packed record and an id
+//! for the shared splits), kept by the tracer for the next call (a second call of the same size
+//! allocates nothing). So `a = 24 + 4K` bytes per triangle, `b = 84` per ray (48 without box
+//! splits); `tests/dacrt5d.rs` checks it with a counting allocator.
 
 mod config;
 mod rec;

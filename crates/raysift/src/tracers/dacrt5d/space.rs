@@ -31,14 +31,44 @@ const BUNDLES: usize = UNBOUNDED;
 pub(super) type Bounds = [Option<(Bound5, f32)>; BUNDLES];
 
 /// A split of a node's triangles into two disjoint sets (the first at the front of the list).
+#[derive(Default)]
 struct TriSplit {
     /// How many triangles the first set holds.
     n1: usize,
-    /// The sets' union boxes.
-    lo1: Vec3,
-    hi1: Vec3,
-    lo2: Vec3,
-    hi2: Vec3,
+    first: SetBounds,
+    second: SetBounds,
+}
+
+/// A triangle set's union box and its centroids' bounds (doubled, as `split_tris` takes them).
+#[derive(Clone, Copy)]
+struct SetBounds {
+    lo: Vec3,
+    hi: Vec3,
+    clo: Vec3,
+    chi: Vec3,
+}
+
+impl Default for SetBounds {
+    fn default() -> Self {
+        Self {
+            lo: Vec3::INFINITY,
+            hi: Vec3::NEG_INFINITY,
+            clo: Vec3::INFINITY,
+            chi: Vec3::NEG_INFINITY,
+        }
+    }
+}
+
+impl SetBounds {
+    #[inline(always)]
+    fn grow(&mut self, lo: Vec3, hi: Vec3, c: Vec3) {
+        (self.lo, self.hi) = (self.lo.min(lo), self.hi.max(hi));
+        (self.clo, self.chi) = (self.clo.min(c), self.chi.max(c));
+    }
+
+    fn aabb(&self) -> Aabb {
+        Aabb::new(self.lo, self.hi)
+    }
 }
 
 impl<const ANY: bool> Task<'_, ANY> {
@@ -59,7 +89,7 @@ impl<const ANY: bool> Task<'_, ANY> {
         b: &Bound5,
     ) -> bool {
         let (k, s, i, _) = axes(g);
-        let Some(sp) = self.split_tris(nt, |a| {
+        let Some(sp) = self.split_tris(nt, None, |a| {
             if a == k {
                 s > 0.0
             } else {
@@ -70,13 +100,13 @@ impl<const ANY: bool> Task<'_, ANY> {
             return false;
         };
         self.st.box_splits += 1;
-        let k1 = self.clip_rays(r0, r1, sp.lo1, sp.hi1);
+        let k1 = self.clip_rays(r0, r1, sp.first.lo, sp.first.hi);
         if let Some((b1, s1)) = self.bound_rays(r0, k1)[g] {
             self.node(g, r0, k1, sp.n1, depth + 1, Given::Bound(b1, s1));
         }
         // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
         let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
-        let k2 = self.clip_rays(r0, r1, sp.lo2, sp.hi2);
+        let k2 = self.clip_rays(r0, r1, sp.second.lo, sp.second.hi);
         if let Some((b2, s2)) = self.bound_rays(r0, k2)[g] {
             self.node(g, r0, k2, n2, depth + 1, Given::Bound(b2, s2));
         }
@@ -131,13 +161,22 @@ impl<const ANY: bool> Task<'_, ANY> {
             self.pid.push(p as u32);
         }
         let n = self.pk.len();
-        self.shared(0, n, nt, 0, up);
+        self.shared(0, n, nt, None, 0, up);
     }
 
     /// Shared box splits: packed rays `pk[a..b]` (of any bundle), triangles `tri_idx[..nt]`.
-    fn shared(&mut self, a: usize, b: usize, nt: usize, depth: u32, up: [bool; 3]) {
-        let split = if depth < self.cfg.max_depth && nt > self.cfg.leaf_tris {
-            self.split_tris(nt, |ax| up[ax])
+    /// `cb`: the triangles' centroid bounds, when the parent's split made them.
+    fn shared(
+        &mut self,
+        a: usize,
+        b: usize,
+        nt: usize,
+        cb: Option<(Vec3, Vec3)>,
+        depth: u32,
+        up: [bool; 3],
+    ) {
+        let split = if depth < self.cfg.max_depth && nt > self.cfg.shared_leaf {
+            self.split_tris(nt, cb, |ax| up[ax])
         } else {
             None
         };
@@ -145,15 +184,16 @@ impl<const ANY: bool> Task<'_, ANY> {
             return self.shared_leaf(a, b, nt);
         };
         self.st.top_splits += 1;
-        let k1 = self.filter_packed(a, b, &Aabb::new(sp.lo1, sp.hi1));
+        let (s1, s2) = (sp.first, sp.second);
+        let k1 = self.filter_packed(a, b, &s1.aabb());
         if k1 > a {
-            self.shared(a, k1, sp.n1, depth + 1, up);
+            self.shared(a, k1, sp.n1, Some((s1.clo, s1.chi)), depth + 1, up);
         }
         // The first child permuted only `[0, n1)`: the second's triangles are still `[n1, nt)`.
         let n2 = gather_block(&mut self.tri_idx, 0, sp.n1, nt);
-        let k2 = self.filter_packed(a, b, &Aabb::new(sp.lo2, sp.hi2));
+        let k2 = self.filter_packed(a, b, &s2.aabb());
         if k2 > a {
-            self.shared(a, k2, n2, depth + 1, up);
+            self.shared(a, k2, n2, Some((s2.clo, s2.chi)), depth + 1, up);
         }
     }
 
@@ -196,6 +236,11 @@ impl<const ANY: bool> Task<'_, ANY> {
         let groups = (nt <= LEAF4_MAX).then_some(&groups[..ng]);
         let mut tests = 0u64;
         for j in a..b {
+            // The records two steps ahead, their best hits one step ahead (read from records
+            // asked for a step earlier).
+            if j + 2 * CLIP_PREFETCH < b {
+                prefetch(&self.recs, self.pid[j + 2 * CLIP_PREFETCH] as usize);
+            }
             if j + CLIP_PREFETCH < b {
                 let r = &self.recs[self.pid[j + CLIP_PREFETCH] as usize];
                 self.prefetch_best(r.id as usize);
@@ -248,18 +293,26 @@ impl<const ANY: bool> Task<'_, ANY> {
     }
 
     /// Splits `tri_idx[..nt]` at the middle of the centroids' longest extent; `up(axis)` tells
-    /// whether the rays move towards `+axis` (then the low side is the first set). `None` when
-    /// the centroids do not spread or one side is empty.
-    fn split_tris(&mut self, nt: usize, up: impl Fn(usize) -> bool) -> Option<TriSplit> {
+    /// whether the rays move towards `+axis` (then the low side is the first set); `cb`: the
+    /// centroids' bounds when the caller has them (doubled: `lo + hi`), else a first pass makes
+    /// them. `None` when the centroids do not spread or one side is empty.
+    fn split_tris(
+        &mut self,
+        nt: usize,
+        cb: Option<(Vec3, Vec3)>,
+        up: impl Fn(usize) -> bool,
+    ) -> Option<TriSplit> {
         let boxes = self.boxes;
         // Centroids doubled (`lo + hi`): only their order matters.
-        let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for &t in &self.tri_idx[..nt] {
-            let bx = &boxes[t as usize];
-            let c = Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
-            clo = clo.min(c);
-            chi = chi.max(c);
-        }
+        let centroid = |bx: &[f32; 6]| Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
+        let (clo, chi) = cb.unwrap_or_else(|| {
+            let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+            for &t in &self.tri_idx[..nt] {
+                let c = centroid(&boxes[t as usize]);
+                (clo, chi) = (clo.min(c), chi.max(c));
+            }
+            (clo, chi)
+        });
         let ext = chi - clo;
         let a = if ext.x >= ext.y && ext.x >= ext.z {
             0
@@ -274,30 +327,22 @@ impl<const ANY: bool> Task<'_, ANY> {
         let plane = clo[a] + ext[a] * 0.5;
         let up = up(a);
         let idx = &mut self.tri_idx[..nt];
-        let (mut n1, mut lo1, mut hi1) = (0, Vec3::INFINITY, Vec3::NEG_INFINITY);
-        let (mut lo2, mut hi2) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let (mut n1, mut sp) = (0, TriSplit::default());
         for p in 0..nt {
             let bx = &boxes[idx[p] as usize];
-            let (lo, hi) = (
+            let (lo, hi, c) = (
                 Vec3::new(bx[0], bx[1], bx[2]),
                 Vec3::new(bx[3], bx[4], bx[5]),
+                centroid(bx),
             );
-            let first = (bx[a] + bx[3 + a] <= plane) == up;
-            if first {
-                (lo1, hi1) = (lo1.min(lo), hi1.max(hi));
-            } else {
-                (lo2, hi2) = (lo2.min(lo), hi2.max(hi));
-            }
+            let first = (c[a] <= plane) == up;
+            let side = if first { &mut sp.first } else { &mut sp.second };
+            side.grow(lo, hi, c);
             idx.swap(n1, p);
             n1 += first as usize;
         }
-        (n1 > 0 && n1 < nt).then_some(TriSplit {
-            n1,
-            lo1,
-            hi1,
-            lo2,
-            hi2,
-        })
+        sp.n1 = n1;
+        (n1 > 0 && n1 < nt).then_some(sp)
     }
 
     /// Moves the rays of `recs[r0..r1]` that can hit a triangle inside the box `[lo, hi]`
