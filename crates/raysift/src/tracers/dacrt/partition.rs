@@ -31,28 +31,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// on the test.
     pub(super) fn partition_rays(&mut self, b: &Aabb, rend: usize) -> usize {
         let start = self.rterm;
-        let recs = &mut self.recs[..rend];
-        let ids = &mut self.ray_idx[..rend];
-        let mut k = start;
-        let mut p = start;
-        // Four rays decided at once: the swaps at `p..p + j` touch only slots below `p + j`,
-        // so the records decided up front are still the ones each swap moves.
-        while p + 4 <= rend {
-            let four: &[RayRec; 4] = recs[p..p + 4].try_into().expect("four records");
-            let keep = b.hit_by_packed4(four);
-            for j in 0..4 {
-                recs.swap(k, p + j);
-                ids.swap(k, p + j);
-                k += (keep >> j & 1) as usize;
-            }
-            p += 4;
-        }
-        for p in p..rend {
-            let keep = b.hit_by_packed(&recs[p]);
-            recs.swap(k, p);
-            ids.swap(k, p);
-            k += keep as usize;
-        }
+        let k = partition_packed(b, &mut self.recs[..rend], &mut self.ray_idx[..rend], start);
         self.st.ray_box += (rend - start) as u64;
         if let Some(c) = self.cost.as_mut() {
             // Every ray in the list was tested; those kept entered the cell.
@@ -77,6 +56,40 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         self.st.tri_box += nt as u64;
         (k, other)
     }
+}
+
+/// Moves the packed rays of `recs[start..]` (and their `ids`) that [`Aabb::hit_by_packed`] keeps
+/// to the front of that range, four decided at once by [`Aabb::hit_by_packed4`] (the same
+/// decisions); returns the end of the kept rays. Branch-free Lomuto (see
+/// `Task::partition_rays`). `dacrt`'s ray partitions and `dacrt5d`'s shared box splits.
+#[inline(always)]
+pub(crate) fn partition_packed(
+    b: &Aabb,
+    recs: &mut [RayRec],
+    ids: &mut [u32],
+    start: usize,
+) -> usize {
+    let end = recs.len();
+    let (mut k, mut p) = (start, start);
+    // Four rays decided at once: the swaps at `p..p + j` touch only slots below `p + j`, so the
+    // records decided up front are still the ones each swap moves.
+    while p + 4 <= end {
+        let four: &[RayRec; 4] = recs[p..p + 4].try_into().expect("four records");
+        let keep = b.hit_by_packed4(four);
+        for j in 0..4 {
+            recs.swap(k, p + j);
+            ids.swap(k, p + j);
+            k += (keep >> j & 1) as usize;
+        }
+        p += 4;
+    }
+    for p in p..end {
+        let keep = b.hit_by_packed(&recs[p]);
+        recs.swap(k, p);
+        ids.swap(k, p);
+        k += keep as usize;
+    }
+    k
 }
 
 /// The split-plane filter of `idx` for the child on side `low` of `split` (`span`: the axis'

@@ -19,7 +19,7 @@
 use super::rec::{Given, Task, LEAF4_MAX};
 use crate::geom::ray5d::{axes, clip, Bound5, UNBOUNDED};
 use crate::geom::{Aabb, PackedRay, Vec3};
-use crate::tracers::dacrt::partition::{gather_block, prefetch};
+use crate::tracers::dacrt::partition::{gather_block, partition_packed, prefetch};
 
 /// How many rays ahead [`Task::clip_rays`] asks for a ray's data.
 const CLIP_PREFETCH: usize = 8;
@@ -154,13 +154,8 @@ impl<const ANY: bool> Task<'_, ANY> {
         self.pid.clear();
         for p in start..r1 {
             let r = &self.recs[p];
-            let id = r.id as usize;
-            let best = if ANY {
-                self.rays.tmax[self.base + id]
-            } else {
-                self.t[id]
-            };
             let (o, d) = (Vec3::from(r.o), Vec3::from(r.d));
+            let best = self.best(r.id as usize);
             self.pk.push(PackedRay::new(o, Vec3::ONE / d, r.tmin, best));
             self.pid.push(p as u32);
         }
@@ -202,30 +197,12 @@ impl<const ANY: bool> Task<'_, ANY> {
     }
 
     /// Moves the packed rays of `pk[a..b]` whose slab interval in `bx`, clipped to
-    /// `[tmin, best]`, is not empty to the front (four at a time: `Aabb::hit_by_packed4`, the
-    /// shared slab test's decision bit for bit); returns the end of the kept rays. Every hit on
+    /// `[tmin, best]`, is not empty to the front (`dacrt`'s `partition_packed`: the shared slab
+    /// test's decision bit for bit, four at a time); returns the end of the kept rays. Every hit on
     /// a triangle inside `bx` lies in that interval (`geom::triangle`), so the others have none
     /// closer than their best.
     fn filter_packed(&mut self, a: usize, b: usize, bx: &Aabb) -> usize {
-        let (pk, pid) = (&mut self.pk[..b], &mut self.pid[..b]);
-        let (mut k, mut p) = (a, a);
-        // Four rays decided at once: the swaps at `p..p + j` touch only slots below `p + j`.
-        while p + 4 <= b {
-            let four: &[PackedRay; 4] = pk[p..p + 4].try_into().expect("four records");
-            let keep = bx.hit_by_packed4(four);
-            for j in 0..4 {
-                pk.swap(k, p + j);
-                pid.swap(k, p + j);
-                k += (keep >> j & 1) as usize;
-            }
-            p += 4;
-        }
-        for p in p..b {
-            let keep = bx.hit_by_packed(&pk[p]);
-            pk.swap(k, p);
-            pid.swap(k, p);
-            k += keep as usize;
-        }
+        let k = partition_packed(bx, &mut self.pk[..b], &mut self.pid[..b], a);
         self.st.ray_clips += (b - a) as u64;
         self.st.clipped_out += (b - k) as u64;
         k
@@ -251,17 +228,7 @@ impl<const ANY: bool> Task<'_, ANY> {
             }
             let rec = self.recs[self.pid[j] as usize];
             tests += self.leaf_ray(&rec, groups, nt);
-            let id = rec.id as usize;
-            let best = if ANY {
-                if self.occ[id] {
-                    f32::NEG_INFINITY
-                } else {
-                    self.rays.tmax[self.base + id]
-                }
-            } else {
-                self.t[id]
-            };
-            self.pk[j].inv_tmax.w = best;
+            self.pk[j].inv_tmax.w = self.best(rec.id as usize);
         }
         self.st.ray_tri += tests;
     }
@@ -369,17 +336,8 @@ impl<const ANY: bool> Task<'_, ANY> {
             if p + CLIP_PREFETCH < r1 {
                 self.prefetch_best(self.recs[p + CLIP_PREFETCH].id as usize);
             }
+            let best = self.best(self.recs[p].id as usize);
             let r = &mut self.recs[p];
-            let id = r.id as usize;
-            let best = if ANY {
-                if self.occ[id] {
-                    f32::NEG_INFINITY
-                } else {
-                    self.rays.tmax[self.base + id]
-                }
-            } else {
-                self.t[id]
-            };
             let t0 = clip(Vec3::from(r.o), Vec3::from(r.d), lo, hi, r.tmin, best);
             r.t0 = t0.unwrap_or(0.0);
             self.recs.swap(q, p);
@@ -421,6 +379,21 @@ impl<const ANY: bool> Task<'_, ANY> {
             }
         }
         out
+    }
+
+    /// How far ray `id` may still find a hit: its best hit so far (closest hit), or `tmax`, or
+    /// `-inf` once occluded (any hit: no box keeps it).
+    #[inline(always)]
+    fn best(&self, id: usize) -> f32 {
+        if ANY {
+            if self.occ[id] {
+                f32::NEG_INFINITY
+            } else {
+                self.rays.tmax[self.base + id]
+            }
+        } else {
+            self.t[id]
+        }
     }
 
     /// Asks for the best hit so far of ray `id` (the z-buffer is in ray order, the records in
