@@ -79,11 +79,11 @@ pub struct Config {
     /// holds more than this many triangles (the post's rule makes every node of 16 rays or
     /// fewer a leaf, however many triangles it has). Default 32.
     pub leaf_tris: usize,
-    /// With `space=box`: above the bundles (box splits shared by the rays of all six), a bundle
-    /// takes over its rays when their origins' box (the sum of its extents, origins clipped to
-    /// the node's box) is at most this fraction of the node's triangle box: rays from one point
-    /// at once, rays from all over the scene (random, bounces) not until their node is small.
-    /// 0 hands over only by `spatial_ratio`; a large value hands over at the root. Default 0.25.
+    /// With `space=box`: at the root, a bundle whose origins' box (the sum of its extents) is at
+    /// most this fraction of the scene's box starts its own 5D recursion (rays from one point:
+    /// a camera's, a light's); the other rays go through box splits shared by all six bundles
+    /// (random rays, bounces, shadow rays from hit points). 0 keeps only rays from one point;
+    /// a large value sends every bundle its own way. Default 0.25.
     pub hand_over: f32,
     /// With `space=box`: the shared splits above the bundles stop at nodes of at most this many
     /// triangles, whose leaves test every ray that reaches them. Default 8.
@@ -129,7 +129,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "spatial", doc: "hybrid: spatial splits along the major axis (front to back, early termination) where triangles outnumber rays" },
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
-    OptionDoc { key: "hand_over", doc: "space=box: a bundle leaves the shared box splits when its origins' box is at most this fraction of the node's" },
+    OptionDoc { key: "hand_over", doc: "space=box: at the root, bundles whose origins' box is at most this fraction of the scene's start their own 5D recursion; the rest share box splits" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },

@@ -63,7 +63,7 @@
 //!     of the extent sums: rays from one point, a camera's or a light's) takes its rays into its
 //!     own 5D recursion at once; every other ray (random rays, bounces: origins all over the
 //!     scene, whose bundle bounds cull nothing) goes through box splits shared by all six
-//!     bundles, down to nodes of `leaf_tris` triangles whose leaves test them all. Those rays
+//!     bundles, down to nodes of `shared_leaf` (8) triangles whose leaves test them all. Those rays
 //!     travel as 32-byte packed records (origin, `tmin`, `1/d`, best hit so far), filtered four
 //!     at a time by the shared slab test (`Aabb::hit_by_packed4`), their best hits written back
 //!     by the leaves (an on-the-fly BVH, as Mora's DACRT with object splits). Without it each

@@ -1,20 +1,21 @@
 //! The hybrid's box splits (`space=box`, ours): object splits of a node's triangles with each
 //! child's rays clipped to its triangles' box, inside a bundle ([`Task::box_split`]) and above
-//! the bundles ([`Task::top`]), where the rays of all six bundles share the splits until the
-//! bundles' own bounds can cull.
+//! the bundles ([`Task::top`], [`Task::shared`]), where the rays of all six bundles share them.
 //!
-//! Why above the bundles: rays with origins all over the scene (random rays, bounces) have
-//! bundle bounds that hold the whole scene, so each of the six bundles would make the same
-//! splits of the same triangles (six times the work of one on-the-fly BVH) before its
-//! clipped bounds start to cull. [`Task::top`] makes those splits once for every bundle, and
-//! hands a child's rays to their bundles when its triangles no longer outnumber the largest
-//! bundle's rays `spatial_ratio` times (rays from one point, a camera's, hand over at once).
+//! Why above the bundles: rays with origins all over the scene (random rays, bounces, shadow
+//! rays from hit points) have bundle bounds that hold the whole scene, so each of the six
+//! bundles would make the same splits of the same triangles (six times the work of one
+//! on-the-fly BVH) before its clipped bounds start to cull. At the root, the bundles whose
+//! origins' box is small against the scene's (rays from one point: a camera's, a light's) start
+//! their own 5D recursion; the other rays go through one shared set of box splits down to
+//! leaves of `shared_leaf` triangles, as 32-byte packed records (origin, `tmin`, `1/d`, best
+//! hit) that `dacrt`'s `partition_packed` filters four at a time.
 //!
 //! Exactness: a child keeps the rays whose slab interval in its triangles' union box, clipped
-//! to `[tmin, best]`, is not empty, and moves their origins to that interval's entry
-//! (`geom::ray5d::clip`, "Clipped origins"); the children's triangles are disjoint, so each
-//! pair is tested in the one child holding the triangle, and the z-buffer makes any order of
-//! the children exact.
+//! to `[tmin, best]`, is not empty (the gate puts every hit in that interval: `geom::triangle`),
+//! and a bundle's child moves their origins to that interval's entry (`geom::ray5d::clip`,
+//! "Clipped origins"); the children's triangles are disjoint, so each pair is tested in the one
+//! child holding the triangle, and the z-buffer makes any order of the children exact.
 
 use super::rec::{Given, Task, LEAF4_MAX};
 use crate::geom::ray5d::{axes, clip, Bound5, UNBOUNDED};
@@ -122,10 +123,9 @@ impl<const ANY: bool> Task<'_, ANY> {
     /// first). Each bundle whose origins' box is small against the scene's (extent sums,
     /// `hand_over`: rays from one point) takes its rays into its own recursion on every
     /// triangle. The other rays share box splits ([`Task::shared`]) down to nodes of
-    /// `leaf_tris` triangles (or `max_depth`), whose leaves test them all. (Handing a bundle
-    /// over deeper, when its clipped origins' box is small against the node's, or when the
-    /// triangles no longer outnumber its rays `spatial_ratio` times, was measured: BENCHMARKS.md
-    /// § "dacrt5d: box splits".)
+    /// `shared_leaf` triangles (or `max_depth`), whose leaves test them all. (Handing a bundle
+    /// over deeper too, when the triangles no longer outnumber its rays `spatial_ratio` times,
+    /// was measured and dropped: BENCHMARKS.md § "dacrt5d: box splits".)
     pub(super) fn top(
         &mut self,
         r0: usize,
