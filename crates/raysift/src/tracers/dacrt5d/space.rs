@@ -205,6 +205,12 @@ impl<const ANY: bool> Task<'_, ANY> {
         let k = partition_packed(bx, &mut self.pk[..b], &mut self.pid[..b], a);
         self.st.ray_clips += (b - a) as u64;
         self.st.clipped_out += (b - k) as u64;
+        if let Some(c) = self.cost.as_mut() {
+            // Every ray was tested against the box; those kept entered the node.
+            for (j, &p) in self.pid[a..b].iter().enumerate() {
+                c.add(self.recs[p as usize].id as usize, (a + j < k) as u64, 1, 0);
+            }
+        }
         k
     }
 
@@ -345,6 +351,12 @@ impl<const ANY: bool> Task<'_, ANY> {
         }
         self.st.clipped_out += (r1 - q) as u64;
         self.st.ray_clips += (r1 - r0) as u64;
+        if let Some(c) = self.cost.as_mut() {
+            // One box test per ray (the child node counts the visits of those it keeps).
+            for r in &self.recs[r0..r1] {
+                c.add(r.id as usize, 0, 1, 0);
+            }
+        }
         q
     }
 
