@@ -276,6 +276,7 @@ impl<const ANY: bool> Task<'_, ANY> {
     /// bundles' splits, whose children cull first, do without: making them anyway cost the
     /// dragon's camera rays 14% in one A/B). `None` when the centroids do not spread or one side
     /// is empty.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(ext > 0)`: NaN extents do not split
     fn split_tris<const CB: bool>(
         &mut self,
         nt: usize,
