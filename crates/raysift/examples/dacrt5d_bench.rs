@@ -9,6 +9,7 @@
 //! ```
 //!
 //! Batches: W×W pinhole camera rays (default framing, or `--eye`/`--look`), the same rays shuffled (no layout),
+//! 2×2 jittered samples per pixel of a (W/2)² image, image-shaped and shuffled,
 //! shadow rays from the camera hits to a light above the scene or at `--light` (occlusion), N random rays
 //! (origins in the scene's box), and B path-tracing bounces (cosine-weighted diffuse rays from
 //! the previous bounce's hits, as `render::path` makes them; bounce 1 leaves the camera hits).
@@ -110,9 +111,17 @@ fn run() -> Res<()> {
         shuffled.layout = RayLayout::Unknown;
         let light = light_at.unwrap_or(b.center() + glam::Vec3::new(0.0, b.extent().y * 0.45, 0.0));
         let (shadow, _) = shadow_rays(&scene, &cam, &hits, light);
+        // 2×2 jittered samples per pixel of a (W/2)² image (as many rays), image-shaped and
+        // shuffled.
+        let samples = camera.sample_rays(width / 2, width / 2, 2, 11);
+        let m = samples.len().max(1);
+        let mut samples_shuffled = RayBatch::from_rays((0..m).map(|i| samples.get(i * 7919 % m)));
+        samples_shuffled.layout = RayLayout::Unknown;
         let mut batches = vec![
             ("camera".to_string(), cam.clone(), false),
             ("camera shuffled".to_string(), shuffled, false),
+            ("camera 2x2 samples".to_string(), samples, false),
+            ("camera 2x2 samples shuffled".to_string(), samples_shuffled, false),
             ("shadow".to_string(), shadow, true),
             ("random".to_string(), random_in_box(&b, random, 7), false),
         ];
