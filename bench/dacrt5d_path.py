@@ -8,10 +8,12 @@ on the same rays, and the frame (one build or prepare + every depth's trace).
 Each scene is rendered once (`raysift render --integrator path --spp 1`, the renderer of
 BENCHMARKS.md's Fig. 10, Sponza from bench/common.py's inside camera) with `--record-rays`; the
 recorded batches (one closest-hit batch per depth: the camera rays, then each bounce's) are cut
-into one rays file per depth. Every contender then traces each depth's file in its own process,
-pinned to core 0, one thread: `raysift trace --tracer T --pin --threads 1`, and `embree-peer
---packet 1 --threads 1` at its `low` and `medium` builds (16-ray packets over 4×4 tiles for the
-camera rays, Embree's best there). Contenders alternate within each round; medians over rounds.
+into one rays file per depth. raysift's tracers render the same frame in one process (`raysift
+render --tracer T --pin --threads 1`: per-depth trace times from its JSON, and whatever a tracer
+keeps between calls counts as in a frame); Embree traces each depth's file in its own process,
+`embree-peer --packet 1 --threads 1` at its `low` and `medium` builds (16-ray packets over 4×4
+tiles for the camera rays, Embree's best there), all pinned to core 0. Contenders alternate
+within each round; medians over rounds.
 Every raysift answer is compared with the recorded one (bit for bit on prim, t, u, v) and Embree's
 primitive ids are counted where they differ. Prints Markdown tables and the commands.
 """
@@ -81,23 +83,40 @@ def main():
         for r in range(a.rounds):
             order = contenders[r % len(contenders):] + contenders[:r % len(contenders)]
             for c in order:
+                if c in tracers:
+                    # One frame in one process (the renderer's own calls: what a tracer keeps
+                    # between calls counts as it would in a frame); its per-depth times. The
+                    # renderer is deterministic and every tracer's answers are the same, so its
+                    # rays are the recorded ones (checked: the rays per depth).
+                    j = run([a.raysift, "render", path, "--integrator", "path", "--spp", "1", "--bounces",
+                             str(a.bounces), "--width", str(a.size), "--height", str(a.size), "--threads", "1",
+                             "--pin", "--quiet", "--json", "--out", d + f"-{common.slug(c)}.png", *cam,
+                             *common.tracer_args(c)])
+                    per = j["per_bounce"]
+                    assert [p["rays"] for p in per] == [len(w) for _, w, _ in depth_files], sc
+                    for k, p in enumerate(per):
+                        res[c][k].append(p["trace_ms"])
+                    prep[c].append(j["prepare_ms"])
+                    if r == 0:
+                        # Each depth's rays traced alone; answers bit for bit against the recording.
+                        for k, (f, want, _) in enumerate(depth_files):
+                            out = os.path.join(d, f"out-{k}.npy")
+                            run([a.raysift, "trace", path, "--rays", f, "--threads", "1", "--json",
+                                 *common.tracer_args(c), "--out", out])
+                            got = np.load(out)
+                            bad[c] += not all(np.array_equal(got[x].view(np.uint32), want[x].view(np.uint32))
+                                              for x in ("t", "prim", "u", "v"))
+                    print(f"  {sc} round {r + 1} {c}", file=sys.stderr)
+                    continue
                 for k, (f, want, layout) in enumerate(depth_files):
                     out = os.path.join(d, f"out-{k}.npy")
-                    if c in tracers:
-                        j = run([a.raysift, "trace", path, "--rays", f, "--pin", "--threads", "1",
-                                 "--json", *common.tracer_args(c), "--out", out])
-                        got = np.load(out)
-                        if r == 0 and not all(np.array_equal(got[x].view(np.uint32), want[x].view(np.uint32))
-                                              for x in ("t", "prim", "u", "v")):
-                            bad[c] += 1
-                    else:
-                        cmd = [a.peer, "--tris", tris, "--rays", f, "--threads", "1", "--repeat", "1",
-                               "--quality", quality[c], "--out", out]
-                        if layout.startswith("pinhole"):
-                            cmd += ["--packet", "16", "--tile", f"{a.size},{a.size}"]
-                        j = run(cmd)
-                        if r == 0:
-                            bad[c] += int((np.load(out)["prim"] != want["prim"]).sum())
+                    cmd = [a.peer, "--tris", tris, "--rays", f, "--threads", "1", "--repeat", "1",
+                           "--quality", quality[c], "--out", out]
+                    if layout.startswith("pinhole"):
+                        cmd += ["--packet", "16", "--tile", f"{a.size},{a.size}"]
+                    j = run(cmd)
+                    if r == 0:
+                        bad[c] += int((np.load(out)["prim"] != want["prim"]).sum())
                     res[c][k].append(j["trace_ms"])
                     if k == 0:
                         prep[c].append(j["prepare_ms"])

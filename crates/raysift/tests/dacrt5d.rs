@@ -274,8 +274,9 @@ fn measure(f: impl FnOnce()) -> usize {
 }
 
 /// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits),
-/// whatever the scene's shape, the rays and the options; a second call nothing; `bytes()`
-/// reports the sum.
+/// plus the kept upper levels of the shared splits when its rays share them (`4·T` and
+/// `64·(4·T/1025 + 1)`), whatever the scene's shape, the rays and the options; a second call
+/// nothing; `bytes()` reports the sum.
 #[test]
 fn memory_is_a_deterministic_linear_function() {
     let _g = serial();
@@ -307,13 +308,15 @@ fn memory_is_a_deterministic_linear_function() {
                 // The harness's own thread may allocate meanwhile (its "running for over 60
                 // seconds" notes): the smallest of three tries, each component.
                 let mut m = [usize::MAX; 4];
+                let mut built = 0;
                 for _ in 0..3 {
                     let mut d = tracers::create("dacrt5d", &o).unwrap();
                     let prepare = measure(|| {
                         d.prepare(scene).unwrap();
                     });
                     let first = measure(|| {
-                        d.intersect(scene, rays, &mut hits, None).unwrap();
+                        let st = d.intersect(scene, rays, &mut hits, None).unwrap();
+                        built = st.work.get("top_built") as usize;
                     });
                     let again = measure(|| {
                         d.occluded(scene, rays, &mut occ, None).unwrap();
@@ -330,10 +333,27 @@ fn memory_is_a_deterministic_linear_function() {
                 } else {
                     84
                 };
+                // The first call that shares splits keeps their upper levels (`top_leaf` 1024):
+                // the triangle order and at most 4·T/1025 + 1 nodes of 64 B.
+                let top = if built > 0 {
+                    assert!(built <= 4 * t / 1025 + 1, "{built} nodes");
+                    4 * t + 64 * (4 * t / 1025 + 1)
+                } else {
+                    0
+                };
+                assert_eq!(
+                    built > 0,
+                    kv == [("cull", "cone")],
+                    "{kv:?}: random rays share"
+                );
                 assert_eq!(prepare, 24 * t, "{kv:?}");
-                assert_eq!(first, 4 * t * tasks + per_ray * r, "{kv:?} tasks {tasks}");
+                assert_eq!(
+                    first,
+                    4 * t * tasks + per_ray * r + top,
+                    "{kv:?} tasks {tasks}"
+                );
                 assert_eq!(again, 0, "{kv:?}");
-                assert_eq!(held, 24 * t + 4 * t * tasks + per_ray * r);
+                assert_eq!(held, 24 * t + 4 * t * tasks + per_ray * r + top);
             }
         }
     }

@@ -88,6 +88,10 @@ pub struct Config {
     /// With `space=box`: the shared splits above the bundles stop at nodes of at most this many
     /// triangles, whose leaves test every ray that reaches them. Default 8.
     pub shared_leaf: usize,
+    /// With `space=box`: the upper levels of the shared splits, down to nodes of this many
+    /// triangles, are made at `prepare` and kept between calls (they depend on the triangles
+    /// only); 0 makes every split per call. Default 1024.
+    pub top_leaf: usize,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -111,6 +115,7 @@ impl Default for Config {
             leaf_tris: 32,
             hand_over: 0.25,
             shared_leaf: 8,
+            top_leaf: 1024,
             max_depth: 64,
             tasks: 0,
         }
@@ -130,6 +135,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
     OptionDoc { key: "hand_over", doc: "space=box: at the root, bundles whose origins' box is at most this fraction of the scene's start their own 5D recursion; the rest share box splits" },
+    OptionDoc { key: "top_leaf", doc: "space=box: shared splits above nodes of this many triangles are made at prepare and kept (0: none)" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
@@ -204,6 +210,10 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "shared box splits only (no hand-over by size), leaves of one",
         opts: &[("hand_over", "0"), ("shared_leaf", "1"), ("tasks", "2")],
+    },
+    Preset {
+        name: "kept levels down to 2 triangles, shared leaves of 1",
+        opts: &[("top_leaf", "2"), ("shared_leaf", "1"), ("tasks", "2")],
     },
     Preset {
         name: "every bundle on its own (hand-over at the root)",

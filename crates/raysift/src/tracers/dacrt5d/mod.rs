@@ -99,6 +99,7 @@ mod config;
 mod rec;
 mod run;
 mod space;
+mod top;
 
 pub use config::{Config, Cull, Space, Stop, OPTION_DOCS, PRESETS};
 
@@ -136,6 +137,9 @@ pub struct Dacrt5d {
     extent: f32,
     /// The live triangles' box (`lo`, `hi`).
     bounds: [[f32; 3]; 2],
+    /// The kept upper levels of the shared box splits (`top.rs`), made by the first call that
+    /// shares splits after each `prepare`.
+    top: std::sync::OnceLock<top::Top>,
     pool: Vec<Mutex<Scratch>>,
 }
 
@@ -149,6 +153,7 @@ impl Dacrt5d {
             scale: 0.0,
             extent: 0.0,
             bounds: [[0.0; 3]; 2],
+            top: std::sync::OnceLock::new(),
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
         }
     }
@@ -183,6 +188,9 @@ crate::counters! {
         box_splits,
         /// Box splits above the bundles (the rays of every bundle together).
         top_splits,
+        /// Nodes of the kept upper levels this call made (`top.rs`; the first call after a
+        /// `prepare` that shares splits makes them).
+        top_built,
         /// Ray/box clips (each box split clips its rays against both children's boxes).
         ray_clips,
         /// Rays a box split's child dropped (no hit possible in its box before their best).
@@ -224,6 +232,7 @@ crate::counters! {
     pub struct Built {
         /// Triangle boxes written.
         triangles,
+
     }
 }
 
@@ -274,6 +283,8 @@ impl Tracer for Dacrt5d {
         self.scale = scale;
         self.extent = (0..3).map(|k| hi_all[k] - lo_all[k]).fold(0.0f32, f32::max);
         self.bounds = [lo_all, hi_all];
+        // The kept levels of the previous scene are stale.
+        self.top = std::sync::OnceLock::new();
         self.stamp = scene.stamp();
         Ok(Stats::prepared(
             &Built {
@@ -349,6 +360,6 @@ impl Tracer for Dacrt5d {
                 })
             })
             .sum();
-        self.boxes.capacity() * 24 + pool
+        self.boxes.capacity() * 24 + self.top.get().map_or(0, top::Top::bytes) + pool
     }
 }

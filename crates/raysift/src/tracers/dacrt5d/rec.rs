@@ -64,6 +64,8 @@ pub(super) struct Task<'a, const ANY: bool> {
     pub(super) cfg: &'a Config,
     pub(super) tris: &'a TriangleSoup,
     pub(super) boxes: &'a [[f32; 6]],
+    /// The kept upper levels of the shared box splits, once made (`top.rs`).
+    pub(super) top: &'a std::sync::OnceLock<super::top::Top>,
     pub(super) rays: &'a RayBatch,
     /// First ray of the share.
     pub(super) base: usize,

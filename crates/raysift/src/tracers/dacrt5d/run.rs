@@ -39,6 +39,7 @@ impl Dacrt5d {
             cfg: &self.cfg,
             tris: scene.triangles(),
             boxes: &self.boxes,
+            top: &self.top,
             rays,
             base,
             t,
@@ -100,6 +101,11 @@ impl Dacrt5d {
         );
         let nlive = task.tri_idx.len();
         if nlive > 0 {
+            // The unbounded group first: below the kept levels the list holds a kept node's
+            // triangles only (`space.rs`, `Task::shared_top`).
+            if start[UNBOUNDED] < len {
+                task.leaf(start[UNBOUNDED], len, nlive);
+            }
             if shared {
                 // Box splits above the bundles first (`space.rs`).
                 let scene_box = (Vec3::from(self.bounds[0]), Vec3::from(self.bounds[1]));
@@ -113,9 +119,6 @@ impl Dacrt5d {
                         task.node(g, start[g], start[g + 1], nlive, 0, Given::Rays);
                     }
                 }
-            }
-            if start[UNBOUNDED] < len {
-                task.leaf(start[UNBOUNDED], len, nlive);
             }
         }
         if !ANY {

@@ -18,6 +18,7 @@
 //! child holding the triangle, and the z-buffer makes any order of the children exact.
 
 use super::rec::{Given, Task, LEAF4_MAX};
+use super::top::Top;
 use crate::geom::ray5d::{axes, clip, Bound5, UNBOUNDED};
 use crate::geom::{Aabb, PackedRay, Vec3};
 use crate::tracers::dacrt::partition::{gather_block, partition_packed, prefetch};
@@ -32,20 +33,22 @@ const BUNDLES: usize = UNBOUNDED;
 pub(super) type Bounds = [Option<(Bound5, f32)>; BUNDLES];
 
 /// A split of a node's triangles into two disjoint sets (the first at the front of the list).
-struct TriSplit {
+pub(super) struct TriSplit {
+    /// The split axis.
+    pub(super) axis: usize,
     /// How many triangles the first set holds.
-    n1: usize,
-    first: SetBounds,
-    second: SetBounds,
+    pub(super) n1: usize,
+    pub(super) first: SetBounds,
+    pub(super) second: SetBounds,
 }
 
-/// A triangle set's union box and its centroids' bounds (doubled, as `split_tris` takes them).
-#[derive(Clone, Copy)]
-struct SetBounds {
-    lo: Vec3,
-    hi: Vec3,
-    clo: Vec3,
-    chi: Vec3,
+/// A triangle set's union box and its centroids' bounds (doubled, as `split_set` takes them).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SetBounds {
+    pub(super) lo: Vec3,
+    pub(super) hi: Vec3,
+    pub(super) clo: Vec3,
+    pub(super) chi: Vec3,
 }
 
 impl Default for SetBounds {
@@ -62,7 +65,7 @@ impl Default for SetBounds {
 impl SetBounds {
     /// Grown by a triangle's box (and its centroid when `CB`).
     #[inline(always)]
-    fn grown<const CB: bool>(self, lo: Vec3, hi: Vec3, c: Vec3) -> Self {
+    pub(super) fn grown<const CB: bool>(self, lo: Vec3, hi: Vec3, c: Vec3) -> Self {
         Self {
             lo: self.lo.min(lo),
             hi: self.hi.max(hi),
@@ -71,7 +74,7 @@ impl SetBounds {
         }
     }
 
-    fn aabb(&self) -> Aabb {
+    pub(super) fn aabb(&self) -> Aabb {
         Aabb::new(self.lo, self.hi)
     }
 }
@@ -160,7 +163,47 @@ impl<const ANY: bool> Task<'_, ANY> {
             self.pid.push(p as u32);
         }
         let n = self.pk.len();
-        self.shared(0, n, nt, None, 0, up);
+        if self.cfg.top_leaf == 0 {
+            return self.shared(0, n, nt, None, 0, up);
+        }
+        let (boxes, cfg) = (self.boxes, self.cfg);
+        let mut built = 0;
+        let top = self.top.get_or_init(|| {
+            let top = Top::new(boxes, cfg.top_leaf, cfg.max_depth);
+            built = top.nodes.len() as u64;
+            top
+        });
+        self.st.top_built += built;
+        if top.nodes.is_empty() {
+            return self.shared(0, n, nt, None, 0, up);
+        }
+        self.shared_top(top, 0, 0, n, up);
+    }
+
+    /// The kept levels (`top.rs`): node `i` of them with packed rays `pk[a..b]`; below a kept
+    /// leaf, the splits are made per call from its triangles, copied into the list's prefix
+    /// (so the list no longer holds every triangle: the hand-over and the unbounded group's
+    /// leaf come before).
+    fn shared_top(&mut self, top: &Top, i: usize, a: usize, b: usize, up: [bool; 3]) {
+        let n = top.nodes[i];
+        if n.kids == 0 {
+            let (s, len) = (n.start as usize, n.len as usize);
+            self.tri_idx[..len].copy_from_slice(&top.order[s..s + len]);
+            return self.shared(a, b, len, Some((n.set.clo, n.set.chi)), 0, up);
+        }
+        self.st.top_splits += 1;
+        let low = n.kids as usize;
+        let order = if up[n.axis as usize] {
+            [low, low + 1]
+        } else {
+            [low + 1, low]
+        };
+        for c in order {
+            let k = self.filter_packed(a, b, &top.nodes[c].set.aabb());
+            if k > a {
+                self.shared_top(top, c, a, k, up);
+            }
+        }
     }
 
     /// Shared box splits: packed rays `pk[a..b]` (of any bundle), triangles `tri_idx[..nt]`.
@@ -269,68 +312,14 @@ impl<const ANY: bool> Task<'_, ANY> {
         start
     }
 
-    /// Splits `tri_idx[..nt]` at the middle of the centroids' longest extent; `up(axis)` tells
-    /// whether the rays move towards `+axis` (then the low side is the first set); `cb`: the
-    /// centroids' bounds when the caller has them (doubled: `lo + hi`), else a first pass makes
-    /// them; with `CB` the sets' centroid bounds are made too, for the children's splits (the
-    /// bundles' splits, whose children cull first, do without: making them anyway cost the
-    /// dragon's camera rays 14% in one A/B). `None` when the centroids do not spread or one side
-    /// is empty.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(ext > 0)`: NaN extents do not split
+    /// [`split_set`] of `tri_idx[..nt]`.
     fn split_tris<const CB: bool>(
         &mut self,
         nt: usize,
         cb: Option<(Vec3, Vec3)>,
         up: impl Fn(usize) -> bool,
     ) -> Option<TriSplit> {
-        let boxes = self.boxes;
-        // Centroids doubled (`lo + hi`): only their order matters.
-        let centroid = |bx: &[f32; 6]| Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
-        let (clo, chi) = cb.unwrap_or_else(|| {
-            let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-            for &t in &self.tri_idx[..nt] {
-                let c = centroid(&boxes[t as usize]);
-                (clo, chi) = (clo.min(c), chi.max(c));
-            }
-            (clo, chi)
-        });
-        let ext = chi - clo;
-        let a = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
-        if !(ext[a] > 0.0) {
-            return None;
-        }
-        let plane = clo[a] + ext[a] * 0.5;
-        let up = up(a);
-        let idx = &mut self.tri_idx[..nt];
-        let (mut n1, mut first_set, mut second_set) =
-            (0, SetBounds::default(), SetBounds::default());
-        for p in 0..nt {
-            let bx = &boxes[idx[p] as usize];
-            let (lo, hi, c) = (
-                Vec3::new(bx[0], bx[1], bx[2]),
-                Vec3::new(bx[3], bx[4], bx[5]),
-                centroid(bx),
-            );
-            let first = (c[a] <= plane) == up;
-            if first {
-                first_set = first_set.grown::<CB>(lo, hi, c);
-            } else {
-                second_set = second_set.grown::<CB>(lo, hi, c);
-            }
-            idx.swap(n1, p);
-            n1 += first as usize;
-        }
-        (n1 > 0 && n1 < nt).then_some(TriSplit {
-            n1,
-            first: first_set,
-            second: second_set,
-        })
+        split_set::<CB>(&mut self.tri_idx[..nt], self.boxes, cb, up)
     }
 
     /// Moves the rays of `recs[r0..r1]` that can hit a triangle inside the box `[lo, hi]`
@@ -420,4 +409,68 @@ impl<const ANY: bool> Task<'_, ANY> {
             prefetch(self.t, id);
         }
     }
+}
+
+/// Splits the triangle set `idx` at the middle of its centroids' longest extent into two
+/// disjoint sets, the first moved to the front; `up(axis)` tells whether the rays move towards
+/// `+axis` (then the low side is the first set); `cb`: the centroids' bounds when the caller has
+/// them (doubled: `lo + hi`), else a first pass makes them; with `CB` the sets' centroid bounds
+/// are made too, for the children's splits (the bundles' splits, whose children cull first, do
+/// without: making them anyway cost the dragon's camera rays 14% in one A/B). `None` when the
+/// centroids do not spread or one side is empty. The sets depend on the triangles only (`up`
+/// only says which is first), so the kept top levels ([`super::top`]) make the same splits.
+#[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(ext > 0)`: NaN extents do not split
+pub(super) fn split_set<const CB: bool>(
+    idx: &mut [u32],
+    boxes: &[[f32; 6]],
+    cb: Option<(Vec3, Vec3)>,
+    up: impl Fn(usize) -> bool,
+) -> Option<TriSplit> {
+    let nt = idx.len();
+    // Centroids doubled (`lo + hi`): only their order matters.
+    let centroid = |bx: &[f32; 6]| Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
+    let (clo, chi) = cb.unwrap_or_else(|| {
+        let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &t in idx.iter() {
+            let c = centroid(&boxes[t as usize]);
+            (clo, chi) = (clo.min(c), chi.max(c));
+        }
+        (clo, chi)
+    });
+    let ext = chi - clo;
+    let a = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
+    if !(ext[a] > 0.0) {
+        return None;
+    }
+    let plane = clo[a] + ext[a] * 0.5;
+    let up = up(a);
+    let (mut n1, mut first_set, mut second_set) = (0, SetBounds::default(), SetBounds::default());
+    for p in 0..nt {
+        let bx = &boxes[idx[p] as usize];
+        let (lo, hi, c) = (
+            Vec3::new(bx[0], bx[1], bx[2]),
+            Vec3::new(bx[3], bx[4], bx[5]),
+            centroid(bx),
+        );
+        let first = (c[a] <= plane) == up;
+        if first {
+            first_set = first_set.grown::<CB>(lo, hi, c);
+        } else {
+            second_set = second_set.grown::<CB>(lo, hi, c);
+        }
+        idx.swap(n1, p);
+        n1 += first as usize;
+    }
+    (n1 > 0 && n1 < nt).then_some(TriSplit {
+        axis: a,
+        n1,
+        first: first_set,
+        second: second_set,
+    })
 }
