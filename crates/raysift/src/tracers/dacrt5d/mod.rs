@@ -11,6 +11,7 @@
 //! | `geom/ray5d.rs` (shared geometry) | 5D classification (six major-axis bundles, `(x, y, z, u, v)`), a group's 5D box, the open frustum and the cone, their exact culls, and their tests | Arvo–Kirk; the post's frustum |
 //! | `rec.rs` | a bundle's recursion: cull, cost stop or fixed limits, ray-space split, the major-axis cut with early termination, naive leaves | the post's `DACRT`, termination criterion; ours |
 //! | `space.rs` | box splits: inside a bundle (clipped rays, re-culled children), and shared by all bundles above them (packed rays) with the hand-over to the bundles | ours |
+//! | `top.rs` | the shared splits' upper levels, made by the first sharing call after a `prepare` and kept | ours |
 //! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the shared splits or the bundles' recursions, results | |
 //!
 //! What implements which part of the post:
@@ -68,8 +69,11 @@
 //!     at a time by the shared slab test (`Aabb::hit_by_packed4`), their best hits written back
 //!     by the leaves (an on-the-fly BVH, as Mora's DACRT with object splits). Without it each
 //!     bundle made the same splits of the same triangles (six times the work), and before
-//!     packing a clip read eight of the batch's scattered arrays: BENCHMARKS.md § "dacrt5d: box
-//!     splits";
+//!     packing a clip read eight of the batch's scattered arrays. The shared splits depend on
+//!     the triangles only, so their upper levels, down to nodes of `top_leaf` (1024) triangles,
+//!     are kept from the first call that shares splits after each `prepare` (`top.rs`): small
+//!     batches then pay for the nodes their rays reach, not for a pass over every triangle per
+//!     level. BENCHMARKS.md § "dacrt5d: box splits";
 //!   - `major` (the first hybrid; `Task::spatial_split`): a cut along the bundle's major axis at
 //!     the mean of the triangles' near ends: the near triangles (near end at or before the
 //!     plane) are traced first with all the rays, then the rays whose best hit (or `tmax`) lies
@@ -92,8 +96,10 @@
 //! (one 48-byte record per ray: origin, direction, `tmin`, `t0`, slopes, id, bundle) plus, with
 //! box splits (`spatial`, `space=box`, the default), `36·R` (a 32-byte packed record and an id
 //! for the shared splits), kept by the tracer for the next call (a second call of the same size
-//! allocates nothing). So `a = 24 + 4K` bytes per triangle, `b = 84` per ray (48 without box
-//! splits); `tests/dacrt5d.rs` checks it with a counting allocator.
+//! allocates nothing). The first call that shares splits after a `prepare` also keeps their
+//! upper levels: `4·T` (the triangle order) and at most `64·(4·T/(top_leaf + 1) + 1)` bytes of
+//! nodes. So `a = 24 + 4K` bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84`
+//! per ray (48 without box splits); `tests/dacrt5d.rs` checks it with a counting allocator.
 
 mod config;
 mod rec;
