@@ -275,7 +275,7 @@ fn measure(f: impl FnOnce()) -> usize {
 
 /// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits),
 /// plus the kept upper levels of the shared splits when its rays share them (`4·T` and
-/// `64·(4·T/1025 + 1)`), whatever the scene's shape, the rays and the options; a second call
+/// `64·(4·T/257 + 1)`), whatever the scene's shape, the rays and the options; a second call
 /// nothing; `bytes()` reports the sum.
 #[test]
 fn memory_is_a_deterministic_linear_function() {
@@ -333,11 +333,11 @@ fn memory_is_a_deterministic_linear_function() {
                 } else {
                     84
                 };
-                // The first call that shares splits keeps their upper levels (`top_leaf` 1024):
-                // the triangle order and at most 4·T/1025 + 1 nodes of 64 B.
+                // The first call that shares splits keeps their upper levels (`top_leaf` 256):
+                // the triangle order and at most 4·T/257 + 1 nodes of 64 B.
                 let top = if built > 0 {
-                    assert!(built <= 4 * t / 1025 + 1, "{built} nodes");
-                    4 * t + 64 * (4 * t / 1025 + 1)
+                    assert!(built <= 4 * t / 257 + 1, "{built} nodes");
+                    4 * t + 64 * (4 * t / 257 + 1)
                 } else {
                     0
                 };

@@ -90,7 +90,7 @@ pub struct Config {
     pub shared_leaf: usize,
     /// With `space=box`: the upper levels of the shared splits, down to nodes of this many
     /// triangles, are made at `prepare` and kept between calls (they depend on the triangles
-    /// only); 0 makes every split per call. Default 1024.
+    /// only); 0 makes every split per call. Default 256.
     pub top_leaf: usize,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
@@ -115,7 +115,7 @@ impl Default for Config {
             leaf_tris: 32,
             hand_over: 0.25,
             shared_leaf: 8,
-            top_leaf: 1024,
+            top_leaf: 256,
             max_depth: 64,
             tasks: 0,
         }

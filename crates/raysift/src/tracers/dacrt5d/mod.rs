@@ -70,7 +70,7 @@
 //!     by the leaves (an on-the-fly BVH, as Mora's DACRT with object splits). Without it each
 //!     bundle made the same splits of the same triangles (six times the work), and before
 //!     packing a clip read eight of the batch's scattered arrays. The shared splits depend on
-//!     the triangles only, so their upper levels, down to nodes of `top_leaf` (1024) triangles,
+//!     the triangles only, so their upper levels, down to nodes of `top_leaf` (256) triangles,
 //!     are kept from the first call that shares splits after each `prepare` (`top.rs`): small
 //!     batches then pay for the nodes their rays reach, not for a pass over every triangle per
 //!     level. BENCHMARKS.md § "dacrt5d: box splits";
