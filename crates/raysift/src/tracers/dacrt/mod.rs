@@ -131,7 +131,13 @@
 //!   segments that do not end at the light go through the recursion (BENCHMARKS.md, § DACRT:
 //!   shadow rays in light space).
 //! - **Threads** (`run.rs`): as in the paper's path tracer, rayon tasks own disjoint shares of
-//!   the rays (bands of tile rows for camera rays) and their own index lists.
+//!   the rays (bands of tile rows for camera rays) and their own index lists. Camera batches
+//!   with tile leaves (issue #21 item 3, ours) first project every triangle once onto the
+//!   whole image, in parallel chunks of triangles (`screen::project_all`), instead of once per
+//!   task; each task then lists the triangles whose rectangle meets its band
+//!   (`Task::band_triangles`), and the bands are cut where an estimate of the work (rays plus
+//!   rectangle pixels per row, `screen::balanced_bands`) is evenly shared, not at equal
+//!   heights (BENCHMARKS.md, § DACRT: two threads on camera rays).
 //! - **Width and pages** (ours, `screen.rs`, `scratch.rs`): the projection of every triangle is
 //!   written once over [`crate::geom::lanes::Lanes`] and runs eight triangles at a time in AVX2
 //!   code when the CPU has it (checked at run time; the same rectangles bit for bit), four
@@ -156,8 +162,9 @@
 //!   (`max_shadow_cone_deg > 0`), `68·⌈R_task/64⌉` per task plus `8·R` (the Morton order of the
 //!   rays that groups them into compact packets). Camera batches with tile leaves (every
 //!   ray from the eye within 2 pixels of its pixel, one `tmin`) have no ray list but
-//!   `8·T·K` (pixel rectangles) and, per tile, 1036 bytes besides its cone: 64 ray records of
-//!   16 bytes, and 12 for the leaves' bookkeeping (16 with `depth_cull`).
+//!   `8·T + 8·(K + 1)` (pixel rectangles and band bounds, shared by the tasks) and, per tile,
+//!   1036 bytes besides its cone: 64 ray records of 16 bytes, and 12 for the leaves'
+//!   bookkeeping (16 with `depth_cull`).
 //!
 //! Any-hit `ToPoint` batches with `light_space` (the default) use none of that but, per task of
 //! `R_k` rays, `64·R_k + 12·(⌊R_k / light_bucket⌋ + 7)` bytes (16 per ray in ray order, 16 + 32
@@ -167,8 +174,8 @@
 //!
 //! So with `K` tasks: `a = 24 + 4K` bytes per triangle (24 held, `4K` per call), `c = 0`, and
 //! `b = 36` (ray and random modes, and shadow rays by default), `45.0625` (shadow packets,
-//! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 24 +
-//! 12K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false` or when the rays fail the
+//! task shares multiple of 64 rays); camera packets with tile leaves (the default) `a = 32 +
+//! 4K`, `b = 17.25` (full tiles; `37.0625` with `pixel_leaf=false` or when the rays fail the
 //! pixel check: it allocates nothing). These are the bytes a
 //! first call allocates, so also a bound on its peak, and what the tracer then holds
 //! ([`Tracer::bytes`]: `24·T` plus the kept buffers); `Stats::peak_bytes` reports the largest
@@ -204,7 +211,8 @@ use crate::mem::reserve_exact_huge;
 use crate::rays::{HitBatch, RayBatch, RayLayout};
 use crate::scene::{Change, Scene, Stamp, TriangleSoup};
 use crate::tracer::{
-    par_occlusion_chunks, par_ray_chunks, CostMut, CounterDocs, RayCost, Stats, Tally, Tracer,
+    par_occlusion_bands, par_occlusion_chunks, par_ray_bands, par_ray_chunks, CostMut, CounterDocs,
+    HitsMut, RayCost, Stats, Tally, Tracer,
 };
 use glam::{Vec3, Vec4};
 use order::View;
@@ -231,6 +239,9 @@ pub struct Dacrt {
     /// page faults after it: measured in BENCHMARKS.md, § DACRT design measurements).
     /// [`MAX_POOLED`] empty slots are made with the tracer; tasks beyond use fresh buffers.
     pool: Vec<Mutex<Scratch>>,
+    /// Camera batches with tile leaves: every triangle's pixel rectangle on the image, made
+    /// once per call for all its tasks (`screen::project_all`) and kept for the next call.
+    rects: Mutex<run::ShareBufs>,
     /// The top tree of the prepared scene (`top.rs`), built by the first call that wants it
     /// and dropped by a prepare that changes a triangle.
     top: OnceLock<TopTree>,
@@ -247,6 +258,7 @@ impl Dacrt {
             stamp: Stamp::default(),
             span: Default::default(),
             pool: (0..MAX_POOLED).map(|_| Mutex::default()).collect(),
+            rects: Mutex::default(),
             top: OnceLock::new(),
             scale: 0.0,
         }
@@ -310,13 +322,13 @@ struct Task<'a, const ANY: bool> {
     cterm: usize,
     /// Tile leaves (`Config::pixel_leaf`): the cone recursion ends in [`Task::tile_leaf`] and
     /// there is no ray list. `rects[t]` is triangle `t`'s inclusive pixel rectangle
-    /// `[x0, x1, y0, y1]` (task-local rows); `touched[c]`, the pixels of tile `c` some triangle
+    /// `[x0, x1, y0, y1]` (image rows: the call's shared projection); `touched[c]`, the pixels of tile `c` some triangle
     /// of the current leaf hit, and `touched_list` the tiles with any (capacity: the tile
     /// count, never exceeded). All empty otherwise.
     tile_leaves: bool,
     /// Tile leaves: a leaf below this many live tiles (see `project_triangles`).
     leaf_tiles: usize,
-    rects: Vec<[u16; 4]>,
+    rects: &'a [[u16; 4]],
     /// Tile leaves: the projection and tolerance the rectangles were made with, for the edge
     /// test of the pixels of rectangles of at least `edge_pixels` pixels
     /// (`Config::edge_pixels`; `None`: off).
@@ -417,15 +429,20 @@ impl Dacrt {
     ) -> Tally<Counts> {
         let (plan, packets) = self.plan(rays);
         let (top, built) = self.top_tree(scene, rays, &plan);
-        let mut tally: Tally<Counts> =
-            par_occlusion_chunks(rays, occluded, cost, plan.chunk, |range, out, cost| {
+        // One job sent to the pool for the whole call (the shared projection and the tasks
+        // inside it), as many as before it had a shared pass.
+        let mut tally: Tally<Counts> = rayon::scope(|_| {
+            let shared = self.shared_rects(scene, rays, &plan, packets);
+            let task = |band, range, out: &mut [bool], cost: Option<CostMut<'_>>| {
                 self.run_task::<true>(
                     scene,
                     rays,
                     range,
+                    band,
                     &plan,
                     packets,
                     top,
+                    shared.as_ref(),
                     &mut [],
                     &mut [],
                     &mut [],
@@ -433,7 +450,17 @@ impl Dacrt {
                     out,
                     cost,
                 )
-            });
+            };
+            let chunk = plan.chunk.max(1);
+            let mut tally: Tally<Counts> = match &shared {
+                Some(s) => par_occlusion_bands(rays, occluded, cost, &s.bufs.bounds, task),
+                None => par_occlusion_chunks(rays, occluded, cost, chunk, |range, out, cost| {
+                    task(range.start / chunk, range, out, cost)
+                }),
+            };
+            self.keep_rects(shared, &mut tally.counts);
+            tally
+        });
         charge_top(&mut tally.counts, built);
         tally
     }
@@ -508,6 +535,19 @@ pub const COUNTERS: (CounterDocs, CounterDocs) = (
     <Counts as crate::tracer::CounterSet>::DOCS,
 );
 
+/// Triangle `t`'s box as (min, max); degenerate triangles get an empty one, dropped by the
+/// first split. Inlined by hand: as a closure, `prepare` lost it (and a third of its speed) to
+/// an unrelated change elsewhere in the crate.
+#[inline(always)]
+fn span_of(tris: &TriangleSoup, t: usize) -> (Vec3, Vec3) {
+    let [a, b, c] = tris.get(t);
+    if a == b && b == c {
+        (Vec3::INFINITY, Vec3::NEG_INFINITY)
+    } else {
+        (a.min(b).min(c), a.max(b).max(c))
+    }
+}
+
 /// Scenes of at least this many triangles get their min/max lists written in parallel.
 const PAR_PREPARE: usize = 1 << 16;
 
@@ -519,15 +559,7 @@ impl Tracer for Dacrt {
     fn prepare(&mut self, scene: &Scene) -> Result<Stats> {
         let tris = scene.triangles();
         let n = tris.len();
-        let span_of = |t: usize| {
-            let [a, b, c] = tris.get(t);
-            if a == b && b == c {
-                // Degenerate: an empty span, dropped by the first split.
-                (Vec3::INFINITY, Vec3::NEG_INFINITY)
-            } else {
-                (a.min(b).min(c), a.max(b).max(c))
-            }
-        };
+        let span_of = |t: usize| span_of(tris, t);
         // The scene prepared before, changed in some meshes (same triangles): only their ranges
         // of the min/max lists are rewritten. Otherwise all of them, pushed once.
         let partial = match scene.changes_since(self.stamp) {
@@ -631,15 +663,20 @@ impl Tracer for Dacrt {
         }
         let (plan, packets) = self.plan(rays);
         let (top, built) = self.top_tree(scene, rays, &plan);
-        let mut tally: Tally<Counts> =
-            par_ray_chunks(rays, hits, cost, plan.chunk, |range, out, cost| {
+        // One job sent to the pool for the whole call (the shared projection and the tasks
+        // inside it), as many as before it had a shared pass.
+        let mut tally: Tally<Counts> = rayon::scope(|_| {
+            let shared = self.shared_rects(scene, rays, &plan, packets);
+            let task = |band, range, out: HitsMut<'_>, cost: Option<CostMut<'_>>| {
                 self.run_task::<false>(
                     scene,
                     rays,
                     range,
+                    band,
                     &plan,
                     packets,
                     top,
+                    shared.as_ref(),
                     out.t,
                     out.prim,
                     out.u,
@@ -647,7 +684,17 @@ impl Tracer for Dacrt {
                     &mut [],
                     cost,
                 )
-            });
+            };
+            let chunk = plan.chunk.max(1);
+            let mut tally: Tally<Counts> = match &shared {
+                Some(s) => par_ray_bands(rays, hits, cost, &s.bufs.bounds, task),
+                None => par_ray_chunks(rays, hits, cost, chunk, |range, out, cost| {
+                    task(range.start / chunk, range, out, cost)
+                }),
+            };
+            self.keep_rects(shared, &mut tally.counts);
+            tally
+        });
         charge_top(&mut tally.counts, built);
         Ok(tally.into_stats(rays.len()))
     }
@@ -685,6 +732,10 @@ impl Tracer for Dacrt {
             .sum();
         self.span.iter().map(|v| v.capacity() * 8).sum::<usize>()
             + pool
+            + self
+                .rects
+                .lock()
+                .map_or(0, |r| r.rects.capacity() * 8 + r.bounds.capacity() * 8)
             + self.top.get().map_or(0, TopTree::bytes)
     }
 }

@@ -6,7 +6,9 @@ use super::order::{Order, View};
 use super::packets::{for_each_tile_slot, morton_order, PackedCone, Packets, CONE_BYTES};
 use super::ray_rec::RayRec;
 use super::scratch::{reuse, Scratch};
-use super::screen::{pinhole_deviation, MAX_PIXEL_DEVIATION, PINHOLE_TOL};
+use super::screen::{
+    balanced_bands, pinhole_deviation, project_all, MAX_PIXEL_DEVIATION, NO_RECT, PINHOLE_TOL,
+};
 use super::tile_leaf::tile_ordered_rays;
 use super::top::TopTree;
 use super::{clock, ns_since, Counts, Dacrt, Mode, Task};
@@ -16,6 +18,7 @@ use crate::rays::{RayBatch, RayLayout, MISS};
 use crate::scene::Scene;
 use crate::tracer::{CostMut, Tally};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// The per-call plan shared by all tasks.
@@ -92,9 +95,11 @@ impl Dacrt {
         scene: &Scene,
         rays: &RayBatch,
         range: Range<usize>,
+        band: usize,
         plan: &Plan,
         packets: Packets,
         top: Option<&TopTree>,
+        shared: Option<&SharedRects>,
         t: &mut [f32],
         prim: &mut [u32],
         u: &mut [f32],
@@ -121,8 +126,8 @@ impl Dacrt {
             View::Majority => Vec3::ZERO,
         };
         let ncones = packets.count();
-        // This share's pool slot (shares are `plan.chunk` rays, in order).
-        let slot = self.pool.get(range.start / plan.chunk.max(1));
+        // This share's pool slot (the `band`-th share of the rays).
+        let slot = self.pool.get(band);
         let sc = slot
             .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
             .unwrap_or_default();
@@ -171,8 +176,7 @@ impl Dacrt {
             leaf_tiles: self.cfg.pixel_leaf_c_limit,
             edge_test: None,
             edge_pixels: u64::MAX,
-            // Filled by the projection pass, in triangle order.
-            rects: reuse(sc.rects, 0, huge),
+            rects: shared.map_or(&[], |s| &s.bufs.rects[..]),
             tile_rays: reuse(sc.tile_rays, 0, huge),
             tmin0: 0.0,
             dlow: 0.0,
@@ -196,17 +200,13 @@ impl Dacrt {
             // for exact pinhole rays; up to about a pixel for jittered ones), for rays from the
             // eye (the layout is only a hint).
             let row0 = range.start / width;
-            let tiles_fit = width <= 1 << 16 && rows <= 1 << 16;
-            // With tile leaves, the rays' deviation is bounded in f32, four at a time, with
-            // their origins and `tmin`. Otherwise, or when that fails, exact pinhole rays pass
-            // a fixed tolerance without a division per ray, and other rays have their largest
-            // deviation measured.
+            // With tile leaves, the rays' deviation was bounded by the call (the shared
+            // projection's). Otherwise exact pinhole rays pass a fixed tolerance without a
+            // division per ray, and other rays have their largest deviation measured.
             let mut tol = PINHOLE_TOL;
             let mut pinhole = false;
-            if self.cfg.pixel_leaf && tiles_fit {
-                if let Some(dev) = pinhole_deviation(rays, range.start, width, rows, &proj, apex) {
-                    (pinhole, tol) = (true, dev);
-                }
+            if let Some(s) = shared {
+                (pinhole, tol) = (true, s.tol);
             }
             let mut from_eye = true;
             if !pinhole {
@@ -230,15 +230,15 @@ impl Dacrt {
                 }
             }
             if from_eye && tol <= MAX_PIXEL_DEVIATION {
+                task.row0 = row0 as i64;
                 if self.cfg.screen_cull {
-                    (task.proj, task.tol, task.row0) = (Some(proj), tol, row0 as i64);
+                    (task.proj, task.tol) = (Some(proj), tol);
                     // Every cell lies in front of the eye when the root does: the cones would
                     // never be tested, and are not built (see `partition_cones`).
                     task.cones_built = task.pixels(&scene.bounds()).is_none();
                 }
                 let tmin0 = rays.tmin[range.start];
-                let uniform = pinhole || rays.tmin[range.clone()].iter().all(|&t| t == tmin0);
-                if self.cfg.pixel_leaf && uniform && tiles_fit {
+                if pinhole {
                     task.tile_leaves = true;
                     if self.cfg.edge_pixels != usize::MAX {
                         task.edge_test = Some((proj, tol));
@@ -250,7 +250,6 @@ impl Dacrt {
                         .fold(f32::INFINITY, f32::min);
                     let tr = std::mem::take(&mut task.tile_rays);
                     task.tile_rays = tile_ordered_rays(tr, rays, range.start, width, rows, huge);
-                    reserve_exact_huge(&mut task.rects, ntri, huge);
                     reserve_exact_huge(&mut task.touched, ncones, huge);
                     task.touched.resize(ncones, 0);
                     reserve_exact_huge(&mut task.touched_list, ncones, huge);
@@ -328,7 +327,8 @@ impl Dacrt {
         } else {
             let c_lists = clock(self.cfg.phase_times);
             let nlive = match cull {
-                Some((proj, tol, ys, cull)) => task.project_triangles(&proj, tol, ys, cull),
+                Some((_, _, ys, cull)) if task.tile_leaves => task.band_triangles(ys, cull),
+                Some((proj, tol, ys, _)) => task.project_triangles(&proj, tol, ys),
                 None => task.live_triangles(),
             };
             lists = ns_since(c_lists);
@@ -376,7 +376,6 @@ impl Dacrt {
                 cones: task.cones,
                 cone_idx: task.cone_idx,
                 perm: task.perm,
-                rects: task.rects,
                 tile_rays: task.tile_rays,
                 touched: task.touched,
                 touched_list: task.touched_list,
@@ -391,7 +390,89 @@ impl Dacrt {
     }
 }
 
+/// A camera call's shared projection (`screen::project_all`): the rays' largest deviation from
+/// their pixels (every band's bound), every triangle's rectangle with that tolerance, the
+/// tasks' bands balanced by the rectangles (`screen::balanced_bands`), and the pass's
+/// non-degenerate triangles and time, counted once for the call.
+pub(super) struct SharedRects {
+    tol: f64,
+    pub(super) bufs: ShareBufs,
+    pub(super) live: u64,
+    pub(super) ns: u64,
+}
+
+/// The shared projection's buffers, kept between calls: the rectangles (8 bytes per
+/// triangle) and the band bounds (8 bytes per task plus one).
+#[derive(Default)]
+pub(super) struct ShareBufs {
+    pub(super) rects: Vec<[u16; 4]>,
+    pub(super) bounds: Vec<usize>,
+}
+
 impl Dacrt {
+    /// The shared projection for tile leaves (`Config::pixel_leaf`), when the batch is a
+    /// pinhole image whose every band's rays come from the eye with one `tmin`, within
+    /// [`MAX_PIXEL_DEVIATION`] of their pixels (bounded in f32, four at a time, band by band
+    /// in parallel: [`pinhole_deviation`]), and both image dimensions are at most 2^16; `None`
+    /// otherwise (no tile leaves in this call). Hand it back with [`Self::keep_rects`].
+    pub(super) fn shared_rects(
+        &self,
+        scene: &Scene,
+        rays: &RayBatch,
+        plan: &Plan,
+        packets: Packets,
+    ) -> Option<SharedRects> {
+        let c = clock(self.cfg.phase_times);
+        let (Some(proj), Packets::Tiles { width, .. }, View::From(eye)) =
+            (plan.proj, packets, plan.view)
+        else {
+            return None;
+        };
+        let (n, height) = (rays.len(), rays.len() / width);
+        if !(plan.packets && self.cfg.pixel_leaf && width <= 1 << 16 && height <= 1 << 16) {
+            return None;
+        }
+        let chunk = plan.chunk.max(1);
+        let tol = (0..n.div_ceil(chunk))
+            .into_par_iter()
+            .map(|b| {
+                let start = b * chunk;
+                let rows = (n - start).min(chunk) / width;
+                pinhole_deviation(rays, start, width, rows, &proj, eye)
+            })
+            .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
+        let tris = scene.triangles();
+        let huge = self.cfg.huge_pages;
+        let mut bufs = (self.rects.lock())
+            .map(|mut g| std::mem::take(&mut *g))
+            .unwrap_or_default();
+        if bufs.rects.len() != tris.len() {
+            bufs.rects.clear();
+            reserve_exact_huge(&mut bufs.rects, tris.len(), huge);
+            bufs.rects.resize(tris.len(), NO_RECT);
+        }
+        let (live, cover) = project_all(tris, &mut bufs.rects, &proj, tol, width, height);
+        reserve_exact_huge(&mut bufs.bounds, self.tasks() + 1, huge);
+        balanced_bands(&cover, width, height, self.tasks(), &mut bufs.bounds);
+        Some(SharedRects {
+            tol,
+            bufs,
+            live,
+            ns: ns_since(c),
+        })
+    }
+
+    /// Keeps the shared projection's buffer for the next call, and counts its pass in `c`.
+    pub(super) fn keep_rects(&self, shared: Option<SharedRects>, c: &mut Counts) {
+        if let Some(s) = shared {
+            c.tri_box += s.live;
+            c.ns_lists += s.ns;
+            if let Ok(mut g) = self.rects.lock() {
+                *g = s.bufs;
+            }
+        }
+    }
+
     /// The top tree for this call (built now if it is wanted and not there yet), and the
     /// triangle/box tests of its build when this call built it.
     pub(super) fn top_tree(

@@ -19,7 +19,6 @@ pub(super) struct Scratch {
     pub(super) cones: Vec<PackedCone>,
     pub(super) cone_idx: Vec<u32>,
     pub(super) perm: Vec<u64>,
-    pub(super) rects: Vec<[u16; 4]>,
     pub(super) tile_rays: Vec<Vec4>,
     pub(super) touched: Vec<u64>,
     pub(super) touched_list: Vec<u32>,
@@ -39,7 +38,6 @@ impl Scratch {
             + b(&self.cones)
             + b(&self.cone_idx)
             + b(&self.perm)
-            + b(&self.rects)
             + b(&self.tile_rays)
             + b(&self.touched)
             + b(&self.touched_list)

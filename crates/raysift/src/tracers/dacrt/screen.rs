@@ -8,7 +8,9 @@ use super::Task;
 use crate::geom::lanes::{self, F32x8, Lanes, Width};
 use crate::geom::{Aabb, PixelProjection};
 use crate::rays::RayBatch;
+use crate::scene::TriangleSoup;
 use glam::{BVec4A, Vec3, Vec4};
+use rayon::prelude::*;
 
 /// Screen-space culling needs camera rays within this many pixels of their pixel (the
 /// projection fitted to the corner rays): exact pinhole rays are within 1e-3, rays jittered
@@ -18,6 +20,213 @@ pub(super) const MAX_PIXEL_DEVIATION: f64 = 2.0;
 /// The deviation exact pinhole rays are checked against when they are not measured (they
 /// are within a few thousandths of a pixel).
 pub(super) const PINHOLE_TOL: f64 = 1.0 / 256.0;
+
+/// Rectangles of empty pixel ranges: triangles no ray of the image can hit (degenerate, or
+/// covering no pixel centre).
+pub(super) const NO_RECT: [u16; 4] = [1, 0, 1, 0];
+
+/// Triangles `t0..` in `L::N` lanes (a short last group repeats its last triangle), with the
+/// mask of the lanes that are real, non-degenerate triangles (one point, as in `prepare`:
+/// never hit). Shared by the task's culling pass and the call's shared projection.
+#[inline(always)]
+fn triangle_lanes<L: Lanes>(tris: &TriangleSoup, t0: usize, end: usize) -> ([[L; 3]; 3], u32) {
+    let m = (end - t0).min(L::N);
+    let at = |l: usize| (t0 + l).min(end - 1);
+    let lanes = |c: &[Vec3]| {
+        [
+            L::from_fn(|l| c[at(l)].x),
+            L::from_fn(|l| c[at(l)].y),
+            L::from_fn(|l| c[at(l)].z),
+        ]
+    };
+    let v = [lanes(&tris.v0), lanes(&tris.v1), lanes(&tris.v2)];
+    let same = |a: usize| v[0][a].cmpeq(v[1][a]) & v[1][a].cmpeq(v[2][a]);
+    let lane = L::from_fn(|l| l as f32);
+    let live = !(same(0) & same(1) & same(2)) & lane.cmple(L::splat((m - 1) as f32));
+    (v, L::bitmask(live))
+}
+
+/// The shared projection's pass over triangles `t0..t0 + out.len()`, `L::N` at a time: each
+/// one's rectangle on the image (`xs`, `ys`: its pixel ranges) to `out`, [`NO_RECT`] for those
+/// no ray can hit. Returns the non-degenerate count.
+#[inline(always)]
+fn rects_lanes<L: Lanes>(
+    tris: &TriangleSoup,
+    t0: usize,
+    out: &mut [[u16; 4]],
+    proj: &PixelProjection,
+    tol: f64,
+    xs: [i64; 2],
+    ys: [i64; 2],
+) -> u64 {
+    let end = t0 + out.len();
+    let mut live_count = 0;
+    for (g, out) in out.chunks_mut(L::N).enumerate() {
+        let (v, live) = triangle_lanes::<L>(tris, t0 + g * L::N, end);
+        live_count += live.count_ones() as u64;
+        let r = proj.triangle_rects_wide::<L>(v, tol, xs, ys);
+        let kept = r.nonempty() & live;
+        for (l, o) in out.iter_mut().enumerate() {
+            // Exact small integers: the pixel ranges are below 2^16.
+            *o = if kept >> l & 1 != 0 {
+                r.lane(l).map(|v| v as u16)
+            } else {
+                NO_RECT
+            };
+        }
+    }
+    live_count
+}
+
+/// [`rects_lanes`] eight triangles at a time, compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 ([`lanes::width`] is [`Width::Eight`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn rects_avx2(
+    tris: &TriangleSoup,
+    t0: usize,
+    out: &mut [[u16; 4]],
+    proj: &PixelProjection,
+    tol: f64,
+    xs: [i64; 2],
+    ys: [i64; 2],
+) -> u64 {
+    rects_lanes::<F32x8>(tris, t0, out, proj, tol, xs, ys)
+}
+
+/// Triangles per chunk of the shared projection (each chunk one rayon job).
+const RECT_CHUNK: usize = 1 << 14;
+
+/// Row buckets of [`Cover`]: one per image row up to this height, rows shared above it.
+const COVER_BUCKETS: usize = 1024;
+
+/// How many rectangle pixels cover each image row (rows grouped in at most
+/// [`COVER_BUCKETS`] buckets), as a difference array: the estimate of each row's work that
+/// [`balanced_bands`] divides. Integer sums, so the same whatever the chunking.
+#[derive(Clone, Copy)]
+pub(super) struct Cover {
+    height: usize,
+    d: [i64; COVER_BUCKETS + 1],
+}
+
+impl Cover {
+    pub(super) fn new(height: usize) -> Self {
+        Self {
+            height,
+            d: [0; COVER_BUCKETS + 1],
+        }
+    }
+
+    /// The bucket of image row `y`.
+    #[inline(always)]
+    fn bucket(&self, y: usize) -> usize {
+        y * self.height.min(COVER_BUCKETS) / self.height.max(1)
+    }
+
+    /// Adds the rectangles of `rects` (inclusive, image rows).
+    pub(super) fn add(&mut self, rects: &[[u16; 4]]) {
+        for r in rects {
+            if r[0] <= r[1] {
+                let w = (r[1] - r[0] + 1) as i64;
+                self.d[self.bucket(r[2] as usize)] += w;
+                self.d[self.bucket(r[3] as usize) + 1] -= w;
+            }
+        }
+    }
+}
+
+impl std::ops::Add for Cover {
+    type Output = Self;
+    fn add(mut self, o: Self) -> Self {
+        for (a, b) in self.d.iter_mut().zip(o.d) {
+            *a += b;
+        }
+        self
+    }
+}
+
+/// The shared projection (issue #21 item 3): every triangle's inclusive pixel rectangle
+/// `[x0, x1, y0, y1]` on the whole `width`×`height` image (image rows) in `rects[t]`, in
+/// parallel chunks of triangles, so that the tasks (bands of tile rows) need not each project
+/// every triangle; [`NO_RECT`] for triangles no ray can hit. Returns the non-degenerate
+/// count and the rectangles' [`Cover`] (each chunk's counted while its rectangles are in
+/// cache). Same results whatever the chunking (each rectangle is one triangle's).
+pub(super) fn project_all(
+    tris: &TriangleSoup,
+    rects: &mut [[u16; 4]],
+    proj: &PixelProjection,
+    tol: f64,
+    width: usize,
+    height: usize,
+) -> (u64, Cover) {
+    let (xs, ys) = ([0, width as i64 - 1], [0, height as i64 - 1]);
+    let chunk = |(c, out): (usize, &mut [[u16; 4]])| -> (u64, Cover) {
+        let t0 = c * RECT_CHUNK;
+        #[cfg(target_arch = "x86_64")]
+        let live = if lanes::width() == Width::Eight {
+            // SAFETY: `rects_avx2` needs AVX2; `width()` is `Eight` only on CPUs that have it.
+            unsafe { rects_avx2(tris, t0, out, proj, tol, xs, ys) }
+        } else {
+            rects_lanes::<Vec4>(tris, t0, out, proj, tol, xs, ys)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let live = rects_lanes::<Vec4>(tris, t0, out, proj, tol, xs, ys);
+        let mut cover = Cover::new(height);
+        cover.add(out);
+        (live, cover)
+    };
+    let zero = || (0, Cover::new(height));
+    let sum = |a: (u64, Cover), b: (u64, Cover)| (a.0 + b.0, a.1 + b.1);
+    if rects.len() >= 4 * RECT_CHUNK {
+        (rects.par_chunks_mut(RECT_CHUNK).enumerate())
+            .map(chunk)
+            .reduce(zero, sum)
+    } else {
+        (rects.chunks_mut(RECT_CHUNK).enumerate())
+            .map(chunk)
+            .fold(zero(), sum)
+    }
+}
+
+/// Rays of a row weigh this much against one pixel of a triangle's rectangle in
+/// [`balanced_bands`]' estimate of a band's work.
+const RAY_WEIGHT: i64 = 1;
+
+/// Bands of whole tile rows for `k` tasks with about equal work (issue #21 item 3: bands of
+/// equal height left one of two threads idle for a third of a dragon frame), estimated per
+/// image row from its rays (times [`RAY_WEIGHT`]) and the rectangle pixels that cover it
+/// (`cover`, from the shared projection). Writes the bounds in rays, from 0 to the image's,
+/// strictly increasing, to `bounds` (at most `k + 1`; it keeps its capacity). The same for any
+/// thread count.
+pub(super) fn balanced_bands(
+    cover: &Cover,
+    width: usize,
+    height: usize,
+    k: usize,
+    bounds: &mut Vec<usize>,
+) {
+    bounds.clear();
+    bounds.push(0);
+    // Each row's estimate: its bucket's running cover.
+    let mut row = [0i64; COVER_BUCKETS];
+    let mut run = 0;
+    for (b, d) in cover.d[..COVER_BUCKETS].iter().enumerate() {
+        run += d;
+        row[b] = run + RAY_WEIGHT * width as i64;
+    }
+    let total: i128 = (0..height).map(|y| row[cover.bucket(y)] as i128).sum();
+    let mut acc = 0i128;
+    for y in 0..height {
+        acc += row[cover.bucket(y)] as i128;
+        let (b, end) = (bounds.len(), y + 1);
+        if b < k && end % 8 == 0 && end < height && acc * k as i128 >= total * b as i128 {
+            bounds.push(end * width);
+        }
+    }
+    bounds.push(height * width);
+}
 
 impl<'a, const ANY: bool> Task<'a, ANY> {
     /// [`Self::project_lanes`] eight triangles at a time, compiled for AVX2.
@@ -32,14 +241,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         tol: f64,
         xs: [i64; 2],
         ys: [i64; 2],
-        cull: bool,
-    ) -> (usize, f64) {
-        self.project_lanes::<F32x8>(proj, tol, xs, ys, cull)
+    ) -> usize {
+        self.project_lanes::<F32x8>(proj, tol, xs, ys)
     }
 
     /// [`Self::project_triangles`]' pass over the triangles, `L::N` at a time: pushes the kept
-    /// triangles to `tri_idx` and (tile leaves) every triangle's rectangle to `rects`; returns
-    /// the non-degenerate count and the kept rectangles' total area.
+    /// triangles to `tri_idx`; returns the non-degenerate count.
     #[inline(always)]
     fn project_lanes<L: Lanes>(
         &mut self,
@@ -47,76 +254,33 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         tol: f64,
         xs: [i64; 2],
         ys: [i64; 2],
-        cull: bool,
-    ) -> (usize, f64) {
+    ) -> usize {
         let tris = self.tris;
         let n = tris.len();
         let idx = &mut self.tri_idx;
-        let rects = &mut self.rects;
-        let tile_leaves = self.tile_leaves;
-        let mut area = 0.0f64;
         let mut live_count = 0;
-        let row0 = ys[0] as f32;
-        let lane = L::from_fn(|l| l as f32);
-        // `L::N` at a time (a short last group repeats its last triangle).
         for t0 in (0..n).step_by(L::N) {
-            let m = (n - t0).min(L::N);
-            let at = |l: usize| (t0 + l).min(n - 1);
-            let lanes = |c: &[Vec3]| {
-                [
-                    L::from_fn(|l| c[at(l)].x),
-                    L::from_fn(|l| c[at(l)].y),
-                    L::from_fn(|l| c[at(l)].z),
-                ]
-            };
-            let v = [lanes(&tris.v0), lanes(&tris.v1), lanes(&tris.v2)];
-            // Degenerate (one point, as in `prepare`): never hit.
-            let same = |a: usize| v[0][a].cmpeq(v[1][a]) & v[1][a].cmpeq(v[2][a]);
-            let live = !(same(0) & same(1) & same(2)) & lane.cmple(L::splat((m - 1) as f32));
-            let live = L::bitmask(live);
+            let (v, live) = triangle_lanes::<L>(tris, t0, n);
             live_count += live.count_ones() as usize;
-            let r = proj.triangle_rects_wide::<L>(v, tol, xs, ys);
-            let kept = r.nonempty() & live;
-            // Lane by lane: a vector transpose and select here made the AVX2 loop slower
-            // (BENCHMARKS.md, § Fig. 14, "Tried and not kept").
-            for l in 0..m {
-                let q = r.lane(l);
-                if kept >> l & 1 != 0 {
-                    // Exact small integers: the pixel ranges are below 2^16.
-                    area += (q[1] - q[0] + 1.0) as f64 * (q[3] - q[2] + 1.0) as f64;
-                }
-                if tile_leaves {
-                    // Task-local rows; the ranges fit in u16 (tile leaves need both image
-                    // dimensions at most 2^16). Pushed in triangle order (`rects[t]`), no zero
-                    // fill first.
-                    rects.push(if kept >> l & 1 != 0 {
-                        [q[0], q[1], q[2] - row0, q[3] - row0].map(|v| v as u16)
-                    } else {
-                        [1, 0, 1, 0]
-                    });
-                }
-            }
-            let mut keep = if cull { kept } else { live };
+            let mut keep = proj.triangle_rects_wide::<L>(v, tol, xs, ys).nonempty() & live;
             while keep != 0 {
                 idx.push(t0 as u32 + keep.trailing_zeros());
                 keep &= keep - 1;
             }
         }
-        (live_count, area)
+        live_count
     }
 
-    /// [`Self::live_triangles`] for a task with a projection: fills `tri_idx` with the
-    /// non-degenerate triangles, projected onto the task's pixels (rows `ys`) on the way,
-    /// scene order: with `cull` (`Config::pixel_cull`), only the triangles some pixel's ray of
-    /// the task can hit; with pixel leaves, each one's rectangle goes to `rects`. Returns the
-    /// count. One pass over the vertices in order (a list pass, then reads through the list,
-    /// measured slower: BENCHMARKS.md, § DACRT design measurements).
+    /// Pixel culling without tile leaves (`Config::pixel_cull`): fills `tri_idx` with the
+    /// triangles some pixel's ray of the task (rows `ys`) can hit, scene order, projecting
+    /// each one onto the task's pixels. Returns the count. One pass over the vertices in order
+    /// (a list pass, then reads through the list, measured slower: BENCHMARKS.md, § DACRT
+    /// design measurements).
     pub(super) fn project_triangles(
         &mut self,
         proj: &PixelProjection,
         tol: f64,
         ys: [i64; 2],
-        cull: bool,
     ) -> usize {
         let Packets::Tiles { width, .. } = self.packets else {
             return self.live_triangles();
@@ -124,26 +288,62 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let xs = [0, width as i64 - 1];
         self.tri_idx.clear();
         #[cfg(target_arch = "x86_64")]
-        let (live_count, area) = match lanes::width() {
+        let live_count = match lanes::width() {
             // SAFETY: `project_avx2` needs AVX2; `width()` is `Eight` only on CPUs that have it.
-            Width::Eight => unsafe { self.project_avx2(proj, tol, xs, ys, cull) },
-            Width::Four => self.project_lanes::<Vec4>(proj, tol, xs, ys, cull),
+            Width::Eight => unsafe { self.project_avx2(proj, tol, xs, ys) },
+            Width::Four => self.project_lanes::<Vec4>(proj, tol, xs, ys),
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let (live_count, area) = self.project_lanes::<Vec4>(proj, tol, xs, ys, cull);
-        let idx = &self.tri_idx;
-        let k = idx.len();
+        let live_count = self.project_lanes::<Vec4>(proj, tol, xs, ys);
         self.st.tri_box += live_count as u64;
+        self.tri_idx.len()
+    }
+
+    /// Tile leaves: fills `tri_idx` from the shared projection's rectangles (`self.rects`) with
+    /// the triangles whose rectangle meets the task's rows `ys` (image rows), scene order;
+    /// without `cull`, with every non-degenerate triangle. Sets the leaf size from their
+    /// rectangles' mean area. Returns the count.
+    pub(super) fn band_triangles(&mut self, ys: [i64; 2], cull: bool) -> usize {
+        let (y0, y1) = (ys[0] as u16, ys[1] as u16);
+        let rects = self.rects;
+        let mut area = 0u64;
+        // The rectangle's pixels in the band (0 when it has none).
+        let band_area = |r: &[u16; 4]| {
+            let (a, b) = (r[2].max(y0), r[3].min(y1));
+            if r[0] <= r[1] && a <= b {
+                (r[1] - r[0] + 1) as u64 * (b - a + 1) as u64
+            } else {
+                0
+            }
+        };
+        if cull {
+            self.tri_idx.clear();
+            for (t, r) in rects.iter().enumerate() {
+                let a = band_area(r);
+                if a > 0 {
+                    self.tri_idx.push(t as u32);
+                    area += a;
+                }
+            }
+        } else {
+            self.live_triangles();
+            area = self
+                .tri_idx
+                .iter()
+                .map(|&t| band_area(&rects[t as usize]))
+                .sum();
+        }
+        let kept = self.tri_idx.len();
         // Leaves of tiny triangles cost about one pair per pixel they cover, so they can be
         // larger than those of triangles covering many pixels (where a leaf tests each one
         // against every live pixel of its rectangle, occluded or not): `pixel_leaf_c_limit`
         // tiles for rectangles of 16 pixels or more on average, up to 16× that for one pixel
         // (large leaves gain on tiny triangles and lose on large ones: measured in
         // BENCHMARKS.md, § DACRT design measurements).
-        let mean = area / (k.max(1) as f64);
+        let mean = area as f64 / (kept.max(1) as f64);
         let scale = (16.0 / mean.max(1.0)).clamp(1.0, 16.0);
         self.leaf_tiles = (self.cfg.pixel_leaf_c_limit as f64 * scale) as usize;
-        k
+        self.tri_idx.len()
     }
 
     /// The task's pixels (task-local rows) whose rays can meet `b`, when screen-space culling

@@ -176,3 +176,36 @@ fn order_rule() {
     assert!(!o.allows(Vec3::new(0.0, 0.2, 0.0), 0.0, Vec3::Y));
     assert!(!o.allows(Vec3::NAN, 0.0, Vec3::NAN));
 }
+
+#[test]
+fn balanced_bands_follow_the_cover() {
+    use super::screen::{balanced_bands, Cover};
+    let mut bounds = Vec::new();
+    // (width, height, rectangles) -> bounds for k = 1..=5.
+    let check = |w: usize, h: usize, rects: &[[u16; 4]], k: usize, bounds: &mut Vec<usize>| {
+        let mut cover = Cover::new(h);
+        cover.add(rects);
+        balanced_bands(&cover, w, h, k, bounds);
+        assert_eq!((bounds[0], *bounds.last().unwrap()), (0, w * h));
+        assert!(bounds.len() <= k + 1 && bounds.len() >= 2);
+        assert!(bounds.windows(2).all(|p| p[0] < p[1]), "{bounds:?}");
+        // Whole tile rows, but for the image's end.
+        assert!(bounds[..bounds.len() - 1].iter().all(|b| b % (8 * w) == 0));
+    };
+    // No triangles: bands of equal height.
+    check(64, 1024, &[], 2, &mut bounds);
+    assert_eq!(bounds, [0, 512 * 64, 1024 * 64]);
+    // Wide rectangles over the bottom quarter: the first band takes more rows.
+    let bottom = vec![[0u16, 63, 768, 1023]; 100];
+    check(64, 1024, &bottom, 2, &mut bounds);
+    assert!(bounds[1] > 768 * 64, "{bounds:?}");
+    for k in 1..=5 {
+        check(64, 1024, &bottom, k, &mut bounds);
+        check(100, 100, &[[0, 99, 0, 9]], k, &mut bounds);
+        // More rows than buckets.
+        check(8, 5000, &[[0, 7, 4000, 4999], [0, 3, 0, 0]], k, &mut bounds);
+    }
+    // Fewer tile rows than tasks: fewer bands.
+    check(16, 16, &[], 5, &mut bounds);
+    assert_eq!(bounds, [0, 128, 256]);
+}

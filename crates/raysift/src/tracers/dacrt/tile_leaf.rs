@@ -55,8 +55,9 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let r = self.rects[t];
             let x0 = (r[0] as i64).max(cx[0]);
             let x1 = (r[1] as i64).min(cx[1]);
-            let y0 = (r[2] as i64).max(cy[0]);
-            let y1 = (r[3] as i64).min(cy[1]);
+            // The rectangles are in image rows (the shared projection), the cell's task-local.
+            let y0 = (r[2] as i64 - self.row0).max(cy[0]);
+            let y1 = (r[3] as i64 - self.row0).min(cy[1]);
             if x0 > x1 || y0 > y1 {
                 continue;
             }
