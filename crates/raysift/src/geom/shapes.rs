@@ -82,11 +82,13 @@ pub struct Cone {
 }
 
 impl Cone {
-    /// The tightest cone around unit directions `dirs` from `apex`, axis = normalised mean,
-    /// half-angle from the largest `|d×a| / (d·a)` (accurate near zero, unlike `acos`), plus a
+    /// The tightest cone around unit directions `dirs` from `apex` (normalised by the caller,
+    /// `normalize_or_zero`: a zero entry counts for nothing), axis = normalised mean,
+    /// half-angle from the largest `|d×a| / (d·a)` (accurate near zero, unlike `acos`; a ratio,
+    /// so the few ulps by which a normalised `d` misses unit length do not change it), plus a
     /// relative margin. `None` when the directions span a half-space or more.
-    pub fn around_directions(apex: Vec3, dirs: impl Iterator<Item = Vec3> + Clone) -> Option<Self> {
-        let sum: Vec3 = dirs.clone().map(|d| d.normalize_or_zero()).sum();
+    pub fn around_directions(apex: Vec3, dirs: &[Vec3]) -> Option<Self> {
+        let sum: Vec3 = dirs.iter().sum();
         let axis = sum.normalize_or_zero();
         if axis == Vec3::ZERO {
             return None;
@@ -96,7 +98,6 @@ impl Cone {
         // far inside the margin below. A direction at 90° or more gives no cone.
         let mut tan = 0.0f32;
         for d in dirs {
-            let d = d.normalize_or_zero();
             let (sin, cos) = (d.cross(axis).length(), d.dot(axis));
             if sin > 0.0 {
                 // `cos` NaN (an infinite direction) gives no cone either.
@@ -150,12 +151,13 @@ mod tests {
             Vec3::new(-0.01, 0.01, 1.0),
             Vec3::Z,
         ];
-        let c = Cone::around_directions(Vec3::ZERO, dirs.iter().copied()).unwrap();
+        let c = Cone::around_directions(Vec3::ZERO, &dirs.map(|d: Vec3| d.normalize_or_zero()))
+            .unwrap();
         for d in dirs {
             assert!(c.contains_point(d * 7.0));
         }
         assert!(!c.contains_point(Vec3::new(1.0, 0.0, 1.0)));
-        assert!(Cone::around_directions(Vec3::ZERO, [Vec3::X, -Vec3::X].into_iter()).is_none());
+        assert!(Cone::around_directions(Vec3::ZERO, &[Vec3::X, -Vec3::X]).is_none());
     }
 
     #[test]

@@ -219,6 +219,10 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let mut far = 0.0f64;
         let mut reach = 0.0f64;
         let shadow = matches!(self.packets, Packets::Runs { .. });
+        // One pass: the checks, and the packet's unit directions (from the light to the
+        // origins for shadow rays), collected without allocating.
+        let mut buf = [Vec3::ZERO; 64];
+        let mut n = 0;
         self.packets.for_each(c, &self.perm, |k, _| {
             let i = base + k;
             let (o, d) = (rays.origin(i), rays.dir(i));
@@ -227,30 +231,18 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 ok &= rays.tmin[i] >= 0.0 && rays.tmax[i] <= 1.0 && o != apex;
                 far = far.max((o.as_dvec3() + d.as_dvec3() - apex.as_dvec3()).length());
                 reach = reach.max((o.as_dvec3() - apex.as_dvec3()).length());
+                buf[n] = (o - apex).normalize_or_zero();
             } else {
                 ok &= o == apex && rays.tmin[i] >= 0.0;
+                buf[n] = d.normalize_or_zero();
             }
             ok &= d.is_finite() && d != Vec3::ZERO;
+            n += 1;
         });
         if !ok {
             return None;
         }
-        let dirs = |k: usize| {
-            let i = base + k;
-            if shadow {
-                rays.origin(i) - apex
-            } else {
-                rays.dir(i)
-            }
-        };
-        // Collect the packet's directions without allocating: iterate twice via for_each.
-        let mut buf = [Vec3::ZERO; 64];
-        let mut n = 0;
-        self.packets.for_each(c, &self.perm, |k, _| {
-            buf[n] = dirs(k);
-            n += 1;
-        });
-        let cone = Cone::around_directions(apex, buf[..n].iter().copied())?;
+        let cone = Cone::around_directions(apex, &buf[..n])?;
         let (mut half, mut near, mut cut) = (cone.half_angle, 0.0f32, f32::INFINITY);
         if shadow {
             // The rays end `far` away from the light, not on it: points farther than
