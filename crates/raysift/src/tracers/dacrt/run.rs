@@ -451,9 +451,10 @@ impl Dacrt {
             reserve_exact_huge(&mut bufs.rects, tris.len(), huge);
             bufs.rects.resize(tris.len(), NO_RECT);
         }
-        let (live, cover) = project_all(tris, &mut bufs.rects, &proj, tol, width, height);
-        reserve_exact_huge(&mut bufs.bounds, self.tasks() + 1, huge);
-        balanced_bands(&cover, width, height, self.tasks(), &mut bufs.bounds);
+        let k = self.tasks();
+        let (live, cover) = project_all(tris, &mut bufs.rects, &proj, tol, width, height, k > 1);
+        reserve_exact_huge(&mut bufs.bounds, k + 1, huge);
+        balanced_bands(&cover, width, height, k, &mut bufs.bounds);
         Some(SharedRects {
             tol,
             bufs,
