@@ -1,7 +1,9 @@
-//! Ours: screen-space and pixel culling for camera batches. The check that a task's rays come
-//! from the eye through their own pixels, a cell's pixel rectangle, and the one pass that
-//! projects every triangle onto the task's pixels (four or eight lanes), dropping those that
-//! cover no pixel centre and keeping the rectangles for tile leaves.
+//! Ours: screen-space and pixel culling for camera batches. The check that a band's rays come
+//! from the eye through their own pixels, a cell's pixel rectangle, and the passes that
+//! project every triangle (four or eight lanes): for tile leaves, once per call onto the
+//! whole image, shared by the tasks, with the estimate that cuts their bands
+//! (`project_all`, `balanced_bands`, then each task's `band_triangles`); without them, each
+//! task onto its own pixels, dropping the triangles that cover no pixel centre.
 
 use super::packets::Packets;
 use super::Task;

@@ -47,7 +47,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             let t = self.tri_idx[q] as usize;
             if let Some(&f) = self.tri_idx[..nt].get(q + PREFETCH) {
                 let f = f as usize;
-                prefetch(&self.rects, f);
+                prefetch(self.rects, f);
                 prefetch(&tris.v0, f);
                 prefetch(&tris.v1, f);
                 prefetch(&tris.v2, f);
