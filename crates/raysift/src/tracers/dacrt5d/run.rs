@@ -2,6 +2,7 @@
 //! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
 
 use super::rec::{Given, Rec, Task};
+use super::top::live_ids;
 use super::{Counts, Dacrt5d, Scratch, Space};
 use crate::geom::ray5d::{classify, GROUPS, UNBOUNDED};
 use crate::geom::Vec3;
@@ -91,14 +92,7 @@ impl Dacrt5d {
             };
             next[g] += 1;
         }
-        let boxes = &self.boxes;
-        task.tri_idx.extend(
-            boxes
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| b[0] <= b[3])
-                .map(|(t, _)| t as u32),
-        );
+        task.tri_idx.extend(live_ids(&self.boxes));
         let nlive = task.tri_idx.len();
         if nlive > 0 {
             // The unbounded group first: below the kept levels the list holds a kept node's

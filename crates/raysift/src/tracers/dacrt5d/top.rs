@@ -40,6 +40,14 @@ pub(super) struct Top {
     pub(super) nodes: Vec<TopNode>,
 }
 
+/// The ids of the live triangles (boxes with `lo <= hi`; degenerate ones have an empty box),
+/// in order.
+pub(super) fn live_ids(boxes: &[[f32; 6]]) -> impl Iterator<Item = u32> + '_ {
+    (boxes.iter().enumerate())
+        .filter(|(_, b)| b[0] <= b[3])
+        .map(|(t, _)| t as u32)
+}
+
 impl Top {
     /// The levels over the live triangles (boxes with `lo <= hi`) down to nodes of at most
     /// `leaf` triangles (or `max_depth`).
@@ -53,13 +61,7 @@ impl Top {
         let live = boxes.iter().filter(|b| b[0] <= b[3]).count();
         reserve_exact_huge(&mut self.order, live, true);
         self.order.clear();
-        self.order.extend(
-            boxes
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| b[0] <= b[3])
-                .map(|(t, _)| t as u32),
-        );
+        self.order.extend(live_ids(boxes));
         let cap = 4 * live / (leaf + 1) + 1;
         if self.nodes.capacity() < cap {
             self.nodes = Vec::with_capacity(cap);
