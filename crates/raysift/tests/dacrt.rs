@@ -310,3 +310,28 @@ fn light_space_pass_takes_shadow_segments() {
     naive.prepare(&s).unwrap();
     assert_eq!(occ, naive.occluded_timed(&s, &mixed).unwrap().0);
 }
+
+/// Tile leaves take one `tmin` for all of a task's rays, and the tasks' bands are cut by the
+/// work estimate, not where the rays were checked: an image whose lower rows start farther out
+/// (two `tmin`s, each uniform over the rows the check sees as one band) must not reach tile
+/// leaves with the upper rows' `tmin`. The object sits low in the image so that the balanced
+/// bands do not fall on the change.
+#[test]
+fn camera_bands_with_two_tmins() {
+    let s = procedural::icosphere(3000);
+    let b = s.bounds();
+    let mut cam = Camera::framing(&b, 45.0, 1.0);
+    // Look above the sphere: it fills the lower part of the image.
+    cam.look += Vec3::Y * (b.max.y - b.min.y) * 0.35;
+    let (w, h) = (64u32, 64u32);
+    let cut = (b.center() - cam.eye).length();
+    for change in [16usize, 24, 32, 40] {
+        let mut rays = cam.rays(w, h);
+        for k in change * w as usize..rays.len() {
+            rays.tmin[k] = cut;
+        }
+        for tasks in ["1", "2", "3", "4"] {
+            run(&s, &rays, &[("tasks", tasks)]);
+        }
+    }
+}

@@ -411,7 +411,7 @@ pub(super) struct ShareBufs {
 
 impl Dacrt {
     /// The shared projection for tile leaves (`Config::pixel_leaf`), when the batch is a
-    /// pinhole image whose every band's rays come from the eye with one `tmin`, within
+    /// pinhole image whose rays all come from the eye with one `tmin`, within
     /// [`MAX_PIXEL_DEVIATION`] of their pixels (bounded in f32, four at a time, band by band
     /// in parallel: [`pinhole_deviation`]), and both image dimensions are at most 2^16; `None`
     /// otherwise (no tile leaves in this call). Hand it back with [`Self::keep_rects`].
@@ -438,6 +438,11 @@ impl Dacrt {
             .map(|b| {
                 let start = b * chunk;
                 let rows = (n - start).min(chunk) / width;
+                // One `tmin` for the whole image: the tasks' bands are not these, and a task
+                // takes its first ray's `tmin` for all of its rays (NaN-safe: NaN fails).
+                if rays.tmin[start] != rays.tmin[0] {
+                    return None;
+                }
                 pinhole_deviation(rays, start, width, rows, &proj, eye)
             })
             .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
