@@ -543,7 +543,7 @@ where
 {
     let n = rays.len();
     debug_assert!(bounds.first() == Some(&0) && bounds.last() == Some(&n));
-    if hits.len() != n {
+    if [hits.t.len(), hits.prim.len(), hits.u.len(), hits.v.len()] != [n; 4] {
         hits.reset(n);
     }
     let out = HitsMut {
@@ -618,7 +618,7 @@ where
     let n = rays.len();
     // Each chunk resets its own window (in parallel: a serial reset of a million hits was a
     // few ms of every camera call); a batch of another size is reset here first.
-    if hits.len() != n {
+    if [hits.t.len(), hits.prim.len(), hits.u.len(), hits.v.len()] != [n; 4] {
         hits.reset(n);
     }
     let chunk = chunk.max(1);
@@ -709,6 +709,59 @@ mod tests {
         assert_eq!(Two::DOCS, &[("a", "First."), ("b", "Second.")]);
         let json = serde_json::to_value(&s).unwrap();
         assert_eq!(json["work"]["a"], 5);
+    }
+
+    #[test]
+    fn bands_of_any_size_get_their_windows_reset() {
+        let rays = RayBatch::from_rays((0..11).map(|i| crate::rays::Ray {
+            origin: glam::Vec3::new(i as f32, 0.0, 0.0),
+            dir: glam::Vec3::X,
+            tmin: 0.0,
+            tmax: 1.0,
+        }));
+        // Stale answers of an earlier call, and a batch of another size.
+        let mut hits = HitBatch::new(11);
+        hits.t.fill(1.0);
+        hits.prim.fill(7);
+        let mut occ = vec![true; 11];
+        let mut cost = RayCost::default();
+        let bounds = [0, 3, 10, 11];
+        let seen = std::sync::Mutex::new(Vec::new());
+        let n: Tally<Two> = par_ray_bands(
+            &rays,
+            &mut hits,
+            Some(&mut cost),
+            &bounds,
+            |b, r, out, c| {
+                assert!(out.t.iter().all(|&t| t == f32::INFINITY));
+                assert!(out.prim.iter().all(|&p| p == MISS));
+                assert_eq!(
+                    (out.t.len(), out.u.len(), c.unwrap().nodes.len()),
+                    (r.len(), r.len(), r.len())
+                );
+                out.prim.fill(b as u32);
+                seen.lock().unwrap().push((b, r));
+                Tally {
+                    counts: Two { a: 1, b: 0 },
+                    peak_bytes: 0,
+                }
+            },
+        );
+        assert_eq!(n.counts.a, 3);
+        let mut seen = seen.into_inner().unwrap();
+        seen.sort_by_key(|s| s.0);
+        assert_eq!(seen, [(0, 0..3), (1, 3..10), (2, 10..11)]);
+        assert_eq!(hits.prim, [0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 2]);
+        let n: Tally<Two> = par_occlusion_bands(&rays, &mut occ, None, &bounds, |b, r, out, _| {
+            assert!(out.iter().all(|&o| !o) && out.len() == r.len());
+            out.fill(b == 1);
+            Tally {
+                counts: Two { a: 1, b: 0 },
+                peak_bytes: 0,
+            }
+        });
+        assert_eq!(n.counts.a, 3);
+        assert_eq!(occ.iter().filter(|&&o| o).count(), 7);
     }
 
     #[test]
