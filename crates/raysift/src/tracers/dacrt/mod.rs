@@ -322,11 +322,11 @@ struct Task<'a, const ANY: bool> {
     cterm: usize,
     /// Tile leaves (`Config::pixel_leaf`): the cone recursion ends in [`Task::tile_leaf`] and
     /// there is no ray list. `rects[t]` is triangle `t`'s inclusive pixel rectangle
-    /// `[x0, x1, y0, y1]` (image rows: the call's shared projection); `touched[c]`, the pixels of tile `c` some triangle
-    /// of the current leaf hit, and `touched_list` the tiles with any (capacity: the tile
-    /// count, never exceeded). All empty otherwise.
+    /// `[x0, x1, y0, y1]` (image rows: the call's shared projection); `touched[c]`, the
+    /// pixels of tile `c` some triangle of the current leaf hit, and `touched_list` the tiles
+    /// with any (capacity: the tile count, never exceeded). All empty otherwise.
     tile_leaves: bool,
-    /// Tile leaves: a leaf below this many live tiles (see `project_triangles`).
+    /// Tile leaves: a leaf below this many live tiles (see `band_triangles`).
     leaf_tiles: usize,
     rects: &'a [[u16; 4]],
     /// Tile leaves: the projection and tolerance the rectangles were made with, for the edge
