@@ -81,7 +81,7 @@ pub struct Config {
     /// With tile leaves: a leaf when fewer active tiles than this (`c_limit`'s role; a tile
     /// leaf's cost is about linear in pixels plus triangles, so it pays to stop earlier),
     /// scaled up to 16× for meshes whose triangles' mean pixel rectangle is small (below 16
-    /// pixels; see `Task::project_triangles`). Default 256.
+    /// pixels; see `Task::band_triangles`). Default 256.
     pub pixel_leaf_c_limit: usize,
     /// With tile leaves, closest hits (ours): a tile keeps a bound on the distance of its live
     /// pixels' best hits so far (updated at the end of each leaf that hit it), and a triangle
