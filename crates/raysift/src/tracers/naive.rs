@@ -1,5 +1,5 @@
 //! `naive`: every ray against every triangle, threaded over rays. The ground truth every other
-//! tracer is checked against; no paper section, just the definition in `tracer.rs`.
+//! tracer is checked against; no paper section, just the definition in `tracer/mod.rs`.
 
 use crate::error::Result;
 use crate::geom::intersect_triangle;
