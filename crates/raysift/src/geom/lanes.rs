@@ -35,6 +35,8 @@ pub trait Lanes:
     fn abs(self) -> Self;
     /// `±1` by the sign bit; NaN stays NaN.
     fn signum(self) -> Self;
+    /// Lanes whose sign bit is set (`-0.0` and negative NaNs included).
+    fn sign_bit(self) -> Self::Mask;
     /// `self < o ? self : o` (`minps`).
     fn min(self, o: Self) -> Self;
     /// `self > o ? self : o` (`maxps`).
@@ -81,6 +83,10 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn signum(self) -> Self {
         Vec4::signum(self)
+    }
+    #[inline(always)]
+    fn sign_bit(self) -> BVec4A {
+        Vec4::ONE.copysign(self).cmplt(Vec4::ZERO)
     }
     #[inline(always)]
     fn min(self, o: Self) -> Self {
@@ -228,6 +234,10 @@ impl<const N: usize> Lanes for Wide<N> {
                 s
             }
         })
+    }
+    #[inline(always)]
+    fn sign_bit(self) -> WideMask<N> {
+        WideMask(self.0.map(|a| ((a.to_bits() as i32) >> 31) as u32))
     }
     #[inline(always)]
     fn min(self, o: Self) -> Self {
@@ -380,6 +390,11 @@ mod tests {
                 (|a, b| a.cmple(b), |a, b| a.cmple(b)),
                 (|a, b| a.cmpeq(b), |a, b| a.cmpeq(b)),
             ];
+            let sign8 = F32x8::bitmask(a8.sign_bit());
+            let sign4 = Lanes::sign_bit(half(&a, 0)).bitmask()
+                | Lanes::sign_bit(half(&a, 1)).bitmask() << 4;
+            assert_eq!(sign8, sign4);
+            assert_eq!(sign8, (0..8).fold(0, |m, i| m | (a[i].is_sign_negative() as u32) << i));
             for (f8, f4) in cmps {
                 let m8 = f8(a8, b8);
                 let m4 = f4(half(&a, 0), half(&b, 0)).bitmask()

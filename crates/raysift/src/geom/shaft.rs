@@ -87,6 +87,48 @@ impl Shaft {
             let (pu, pv) = (u.dot(d) * iz, v.dot(d) * iz);
             (u0, u1, v0, v1) = (u0.min(pu), u1.max(pu), v0.min(pv), v1.max(pv));
         }
+        Some(Self::around(apex, m, u, v, [u0, u1, v0, v1]))
+    }
+
+    /// [`Shaft::fit`] of the directions `(dx[k], dy[k], dz[k])` (equal lengths), written for
+    /// the compiler to vectorise: no early exit, the sum in four partial sums (any positive
+    /// combination of the directions is inside their cone, so its rounding does not matter).
+    #[inline(always)]
+    pub fn fit_slices(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Self> {
+        let n = dx.len();
+        let (dy, dz) = (&dy[..n], &dz[..n]);
+        let d = |k: usize| DVec3::new(dx[k] as f64, dy[k] as f64, dz[k] as f64);
+        let mut part = [DVec3::ZERO; 4];
+        for k in 0..n {
+            part[k % 4] += d(k);
+        }
+        let m = ((part[0] + part[1]) + (part[2] + part[3])).try_normalize()?;
+        let u = m.any_orthonormal_vector();
+        let v = m.cross(u);
+        let mut ok = true;
+        let (mut u0, mut u1, mut v0, mut v1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for k in 0..n {
+            let d = d(k);
+            let (z, l2) = (m.dot(d), d.length_squared());
+            ok &= z > 0.0 && z * z >= MIN_COS * MIN_COS * l2 && l2.is_finite();
+            let iz = 1.0 / z;
+            let (pu, pv) = (u.dot(d) * iz, v.dot(d) * iz);
+            u0 = if pu < u0 { pu } else { u0 };
+            u1 = if pu > u1 { pu } else { u1 };
+            v0 = if pv < v0 { pv } else { v0 };
+            v1 = if pv > v1 { pv } else { v1 };
+        }
+        ok.then(|| Self::around(apex, m, u, v, [u0, u1, v0, v1]))
+    }
+
+    /// The shaft of apex `apex` and frame `(m, u, v)` around the projected rectangle
+    /// `[u0, u1] × [v0, v1]` (padded by `PAD`), uncapped.
+    fn around(apex: DVec3, m: DVec3, u: DVec3, v: DVec3, [u0, u1, v0, v1]: [f64; 4]) -> Self {
         let (u0, u1, v0, v1) = (u0 - PAD, u1 + PAD, v0 - PAD, v1 + PAD);
         let sides = [u - u0 * m, u1 * m - u, v - v0 * m, v1 * m - v].map(|n| n.normalize());
         let planes = [
@@ -111,7 +153,7 @@ impl Shaft {
             off: [0.0; 8],
         };
         shaft.set_cap(f64::INFINITY);
-        Some(shaft)
+        shaft
     }
 
     /// Keeps only points of depth `<= cap` (`+inf`: no cap).
@@ -292,6 +334,30 @@ mod tests {
                 s.box_outside(blo, bhi),
                 s.planes_outside(&full, s.slack(blo, bhi))
             );
+        }
+    }
+
+    #[test]
+    fn slices_fit_like_the_iterator() {
+        let dirs: Vec<Vec3> = (0..37)
+            .map(|k| Vec3::new(0.01 * (k % 7) as f32 - 0.03, 0.002 * k as f32 - 0.04, -1.0))
+            .collect();
+        let soa = |a: usize| dirs.iter().map(|d| d[a]).collect::<Vec<f32>>();
+        let (dx, dy, dz) = (soa(0), soa(1), soa(2));
+        let apex = DVec3::new(1.0, 2.0, 3.0);
+        let a = Shaft::fit(apex, dirs.iter().map(|d| d.as_dvec3())).unwrap();
+        let b = Shaft::fit_slices(apex, &dx, &dy, &dz).unwrap();
+        // Every direction inside both (the sums' rounding may move `m` by an ulp or so).
+        for d in &dirs {
+            let e = d.as_dvec3();
+            assert!(a.sides.iter().chain(&b.sides).all(|n| n.dot(e) >= 0.0));
+        }
+        assert!((a.m - b.m).length() < 1e-12);
+        // Unusable directions: zero, NaN, infinite, too wide.
+        for bad in [Vec3::ZERO, Vec3::NAN, Vec3::new(0.0, f32::INFINITY, -1.0), Vec3::X] {
+            let (mut x, mut y, mut z) = (dx.clone(), dy.clone(), dz.clone());
+            (x[5], y[5], z[5]) = (bad.x, bad.y, bad.z);
+            assert!(Shaft::fit_slices(apex, &x, &y, &z).is_none(), "{bad}");
         }
     }
 

@@ -1,4 +1,6 @@
-//! [`intersect_triangle`] on four triangles at once, for tracers' leaf loops.
+//! [`intersect_triangle`] on four triangles at once ([`Tri4`]), or on `L::N` rays from one
+//! origin at once ([`TriFromOrigin`], written once over [`Lanes`]: four or eight wide), for
+//! tracers' leaf and list loops.
 //!
 //! Each lane runs exactly the f32 operations of the scalar test, in the same order (glam's
 //! `Vec3::cross` and `Vec3::dot` written out: `dot = (x·x' + y·y') + z·z'`, no fused
@@ -10,10 +12,12 @@
 //! scalar elsewhere), without `unsafe`: the earlier `[f32; 4]` form vectorised the arithmetic but
 //! compiled the seven accept tests to 28 scalar compares. The scalar test's last steps, the box
 //! gate ([`box_gate`]) and the range test, run per accepted lane on the lane's own corners'
-//! box (stored when the lane is set), so they too are the scalar computation.
+//! box (stored when the lane is set), so they too are the scalar computation; for rays from one
+//! origin they run lane-wise on the triangle's one box.
 //!
 //! [`intersect_triangle`]: super::intersect_triangle
 
+use super::lanes::Lanes;
 use super::triangle::{box_gate, gate_scale, GATE_TOLERANCE};
 use glam::{Vec3, Vec3A, Vec4};
 
@@ -64,11 +68,9 @@ pub struct Hit4 {
     pub v: [f32; 4],
 }
 
-type L = Vec4;
-
 /// `(a.y·b.z − b.y·a.z, a.z·b.x − b.z·a.x, a.x·b.y − b.x·a.y)`: glam's `cross`, lane-wise.
 #[inline(always)]
-fn cross(a: [L; 3], b: [L; 3]) -> [L; 3] {
+fn cross<L: Lanes>(a: [L; 3], b: [L; 3]) -> [L; 3] {
     [
         a[1] * b[2] - b[1] * a[2],
         a[2] * b[0] - b[2] * a[0],
@@ -78,7 +80,7 @@ fn cross(a: [L; 3], b: [L; 3]) -> [L; 3] {
 
 /// `(a.x·b.x + a.y·b.y) + a.z·b.z`: glam's `dot`, lane-wise.
 #[inline(always)]
-fn dot(a: [L; 3], b: [L; 3]) -> L {
+fn dot<L: Lanes>(a: [L; 3], b: [L; 3]) -> L {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
@@ -99,7 +101,12 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
     let q = cross(s, e1);
     let v = dot(d, q) * inv_det;
     let t = dot(e2, q) * inv_det;
-    let mut h = accept(det, u, v, t);
+    let mut h = Hit4 {
+        mask: accept(det, u, v).bitmask(),
+        t: t.to_array(),
+        u: u.to_array(),
+        v: v.to_array(),
+    };
     if h.mask == 0 {
         return h;
     }
@@ -123,15 +130,9 @@ pub fn intersect_triangle4(origin: Vec3, dir: Vec3, tri: &Tri4, tmin: f32, tmax:
 /// gate and the range test follow per accepted lane ([`gate_lane`]), for lanes that
 /// [`may_reach`] the ray's range (computed only when some lane passed).
 #[inline(always)]
-fn accept(det: L, u: L, v: L, t: L) -> Hit4 {
-    let (zero, one) = (Vec4::ZERO, Vec4::ONE);
-    let ok = det.cmpne(zero) & u.cmpge(zero) & u.cmple(one) & v.cmpge(zero) & (u + v).cmple(one);
-    Hit4 {
-        mask: ok.bitmask(),
-        t: t.to_array(),
-        u: u.to_array(),
-        v: v.to_array(),
-    }
+fn accept<L: Lanes>(det: L, u: L, v: L) -> L::Mask {
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    !det.cmpeq(zero) & u.cmpge(zero) & u.cmple(one) & v.cmpge(zero) & (u + v).cmple(one)
 }
 
 /// Lane `l` after the scalar test's last steps: the box gate's distance `gated` (`None`: refused)
@@ -147,26 +148,27 @@ fn gate_lane(h: &mut Hit4, l: usize, gated: Option<f32>, tmin: f32, tmax: f32) {
 
 /// [`super::triangle::may_reach`] lane-wise (same operations, so the same decision).
 #[inline(always)]
-fn may_reach(t: L, tmin: f32, tmax: L, dmax: L, reach: L) -> glam::BVec4A {
+fn may_reach(t: Vec4, tmin: f32, tmax: Vec4, dmax: Vec4, reach: Vec4) -> glam::BVec4A {
     !(((t - tmax) * dmax).cmpgt(reach) | ((Vec4::splat(tmin) - t) * dmax).cmpgt(reach))
 }
 
 /// One triangle prepared for rays that share an origin (a camera's eye): the parts of
 /// [`super::intersect_triangle`] that depend only on the triangle and the origin (`e1 = v1 − v0`,
 /// `e2 = v2 − v0`, `s = origin − v0`, `q = s × e1` and `e2·q`) are computed once, by the scalar
-/// test's own operations, so [`Self::intersect4`] on four directions is bit-identical to the
-/// scalar test on each (the per-ray rest is the scalar order, lane-wise).
+/// test's own operations, so [`Self::intersect_lanes`] on `L::N` directions is bit-identical to
+/// the scalar test on each (the per-ray rest is the scalar order, lane-wise). Written once over
+/// [`Lanes`]: four wide ([`Self::intersect4`]) or eight in code compiled for AVX2.
 #[derive(Clone, Copy, Debug)]
 pub struct TriFromOrigin {
     /// The triangle's bounding box less the origin, `lo − origin` and `hi − origin` per axis
     /// (the slab test's first subtraction, the same numbers for every ray from the origin).
-    lo_off: [Vec4; 3],
-    hi_off: [Vec4; 3],
-    e1: [Vec4; 3],
-    e2: [Vec4; 3],
-    s: [Vec4; 3],
-    q: [Vec4; 3],
-    tq: Vec4,
+    lo_off: [f32; 3],
+    hi_off: [f32; 3],
+    e1: [f32; 3],
+    e2: [f32; 3],
+    s: [f32; 3],
+    q: [f32; 3],
+    tq: f32,
     /// `GATE_TOLERANCE · gate_scale(origin, corners)`.
     reach: f32,
     /// How far beyond `[tmin, tmax]` a lane's `t` may lie and still be moved into it by the
@@ -174,11 +176,28 @@ pub struct TriFromOrigin {
     beyond: f32,
 }
 
+/// [`TriFromOrigin::intersect_lanes`]' result: bit `l` of `mask` is set when lane `l` is hit
+/// with `tmin <= t <= tmax`, and then lane `l` of `t, u, v` equals the scalar test's
+/// [`super::TriHit`] (other lanes hold anything).
+#[derive(Clone, Copy, Debug)]
+pub struct HitLanes<L: Lanes> {
+    /// Accepted lanes.
+    pub mask: u32,
+    /// The same, as a lane mask.
+    pub hits: L::Mask,
+    /// Ray parameters.
+    pub t: L,
+    /// Barycentric u.
+    pub u: L,
+    /// Barycentric v.
+    pub v: L,
+}
+
 impl TriFromOrigin {
     /// Triangle `(v0, v1, v2)` seen from `origin`, for rays whose `|d|∞` are all at least
     /// `dlow` (0 when unknown).
     ///
-    /// The gate's pre-test in [`Self::intersect4`] is then a range test widened by
+    /// The gate's pre-test in [`Self::intersect_lanes`] is then a range test widened by
     /// `beyond = reach / dlow · (1 + 10^-4)`: a candidate the gate accepts into `[tmin, tmax]`
     /// from `t > tmax` has `fl(t − moved) · dmax <= reach` (within one rounding), so in real
     /// numbers `t − tmax <= t − moved <= reach · (1 + 2^-21) / dmax <= reach · (1 + 2^-21) / dlow
@@ -196,15 +215,14 @@ impl TriFromOrigin {
         let scale = a(origin).abs().max(lo.abs()).max(hi.abs()).max_element();
         let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
         let reach = GATE_TOLERANCE * scale;
-        let splat = |v: Vec3| [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)];
         Self {
-            lo_off: splat(lo - origin),
-            hi_off: splat(hi - origin),
-            e1: splat(e1),
-            e2: splat(e2),
-            s: splat(s),
-            q: splat(q),
-            tq: Vec4::splat(e2.dot(q)),
+            lo_off: (lo - origin).to_array(),
+            hi_off: (hi - origin).to_array(),
+            e1: e1.to_array(),
+            e2: e2.to_array(),
+            s: s.to_array(),
+            q: q.to_array(),
+            tq: e2.dot(q),
             reach,
             beyond: if dlow > 0.0 {
                 reach / dlow * (1.0 + 1e-4)
@@ -214,66 +232,91 @@ impl TriFromOrigin {
         }
     }
 
-    /// [`super::intersect_triangle`] of the four rays `origin + t·d[·][l]` (directions per axis
-    /// and lane), each with `tmin <= t <= tmax[l]` and `|d|∞` at least the `dlow` given to
-    /// [`Self::new`].
+    /// [`Self::intersect_lanes`] on four lanes, as a [`Hit4`].
     #[inline(always)]
     pub fn intersect4(&self, d: [Vec4; 3], tmin: f32, tmax: Vec4) -> Hit4 {
-        let p = cross(d, self.e2);
-        let det = dot(self.e1, p);
-        let inv_det = Vec4::ONE / det;
-        let u = dot(self.s, p) * inv_det;
-        let v = dot(d, self.q) * inv_det;
-        let t = self.tq * inv_det;
-        let mut h = accept(det, u, v, t);
-        let b = self.beyond;
-        h.mask &= (t.cmple(tmax + Vec4::splat(b)) & t.cmpge(Vec4::splat(tmin - b))).bitmask();
-        if h.mask != 0 {
-            let (gated, ok) = self.box_gate4(d, t, tmin, tmax);
-            h.mask &= ok;
-            h.t = gated.to_array();
+        let h = self.intersect_lanes(d, tmin, tmax);
+        Hit4 {
+            mask: h.mask,
+            t: h.t.to_array(),
+            u: h.u.to_array(),
+            v: h.v.to_array(),
         }
-        h
     }
 
-    /// [`box_gate`] and the range test on four lanes at once: the same f32 operations in the
+    /// [`super::intersect_triangle`] of the `L::N` rays `origin + t·d[·][l]` (directions per
+    /// axis and lane), each with `tmin <= t <= tmax[l]` and `|d|∞` at least the `dlow` given to
+    /// [`Self::new`].
+    #[inline(always)]
+    pub fn intersect_lanes<L: Lanes>(&self, d: [L; 3], tmin: f32, tmax: L) -> HitLanes<L> {
+        let splat = |v: [f32; 3]| v.map(L::splat);
+        let p = cross(d, splat(self.e2));
+        let det = dot(splat(self.e1), p);
+        let inv_det = L::splat(1.0) / det;
+        let u = dot(splat(self.s), p) * inv_det;
+        let v = dot(d, splat(self.q)) * inv_det;
+        let t = L::splat(self.tq) * inv_det;
+        let b = self.beyond;
+        let range = t.cmple(tmax + L::splat(b)) & t.cmpge(L::splat(tmin - b));
+        let mut hits = accept(det, u, v) & range;
+        let mut mask = L::bitmask(hits);
+        let mut t_out = t;
+        if mask != 0 {
+            let (gated, ok) = self.box_gate_lanes(d, t, tmin, tmax);
+            hits = hits & ok;
+            mask = L::bitmask(hits);
+            t_out = gated;
+        }
+        HitLanes {
+            mask,
+            hits,
+            t: t_out,
+            u,
+            v,
+        }
+    }
+
+    /// [`box_gate`] and the range test on `L::N` lanes at once: the same f32 operations in the
     /// same order as the scalar [`SlabRay::new`](super::SlabRay::new) +
     /// [`SlabRay::interval`](super::SlabRay::interval) (near plane chosen by the sign bit of the
     /// direction, which is that of its reciprocal, `−0.0` included; a NaN slab distance never
     /// moves the interval) and the gate's move, with the first subtraction precomputed. One
     /// vector pass instead of a scalar gate per candidate lane: the gate's cost in DACRT's tile
-    /// leaves (BENCHMARKS.md, "The exact contract"). Returns the gated distances and the mask of
-    /// lanes that pass (callers keep only lanes that passed the barycentric tests too).
+    /// leaves (BENCHMARKS.md, "The exact contract"). Returns the gated distances and the lanes
+    /// that pass (callers keep only lanes that passed the barycentric tests too).
     #[inline(always)]
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn box_gate4(&self, d: [Vec4; 3], t: Vec4, tmin: f32, tmax: Vec4) -> (Vec4, u32) {
-        let mut enter = Vec4::NEG_INFINITY;
-        let mut exit = Vec4::INFINITY;
-        let slack = Vec4::splat(super::BOX_EXIT_SLACK);
+    fn box_gate_lanes<L: Lanes>(&self, d: [L; 3], t: L, tmin: f32, tmax: L) -> (L, L::Mask) {
+        let mut enter = L::splat(f32::NEG_INFINITY);
+        let mut exit = L::splat(f32::INFINITY);
+        let slack = L::splat(super::BOX_EXIT_SLACK);
         for (k, &dk) in d.iter().enumerate() {
-            let inv = Vec4::ONE / dk;
-            let neg = Vec4::ONE.copysign(dk).cmplt(Vec4::ZERO);
-            let near = Vec4::select(neg, self.hi_off[k], self.lo_off[k]) * inv;
-            let far = Vec4::select(neg, self.lo_off[k], self.hi_off[k]) * inv * slack;
-            enter = Vec4::select(near.cmpgt(enter), near, enter);
-            exit = Vec4::select(far.cmplt(exit), far, exit);
+            let inv = L::splat(1.0) / dk;
+            let neg = dk.sign_bit();
+            let (lo, hi) = (L::splat(self.lo_off[k]), L::splat(self.hi_off[k]));
+            let near = L::select(neg, hi, lo) * inv;
+            let far = L::select(neg, lo, hi) * inv * slack;
+            enter = L::select(near.cmpgt(enter), near, enter);
+            exit = L::select(exit.cmpgt(far), far, exit);
         }
-        let enter = enter - enter.abs() * Vec4::splat(super::slab::BOX_ENTRY_SLACK);
+        let enter = enter - enter.abs() * L::splat(super::slab::BOX_ENTRY_SLACK);
         let nonempty = enter.cmple(exit);
         let inside = t.cmpge(enter) & t.cmple(exit);
-        let moved = Vec4::select(t.cmplt(enter), enter, exit);
+        let moved = L::select(enter.cmpgt(t), enter, exit);
         let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
-        let near_enough = ((t - moved).abs() * dmax).cmple(Vec4::splat(self.reach));
-        let gated = Vec4::select(inside, t, moved);
-        let ok =
-            nonempty & (inside | near_enough) & gated.cmpge(Vec4::splat(tmin)) & gated.cmple(tmax);
-        (gated, ok.bitmask())
+        let near_enough = ((t - moved).abs() * dmax).cmple(L::splat(self.reach));
+        let gated = L::select(inside, t, moved);
+        let ok = nonempty
+            & (inside | near_enough)
+            & gated.cmpge(L::splat(tmin))
+            & gated.cmple(tmax);
+        (gated, ok)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::lanes::F32x8;
     use crate::geom::{intersect_triangle, TriHit};
     use rand::{Rng, SeedableRng};
 
@@ -401,9 +444,21 @@ mod tests {
             };
             let tri = TriFromOrigin::new(o, a, b, c, dlow);
             let h = tri.intersect4(d4, tmin, Vec4::from_array(tmax));
+            // Eight lanes (the AVX2 width): the four rays, then the same in reverse order.
+            let at8 = |k: usize| if k < 4 { k } else { 7 - k };
+            let d8 = [0, 1, 2].map(|k| F32x8::from_fn(|l| dirs[at8(l)][k]));
+            let h8 = tri.intersect_lanes(d8, tmin, F32x8::from_fn(|l| tmax[at8(l)]));
+            let h8 = |half: usize| Hit4 {
+                mask: h8.mask >> (4 * half) & 15,
+                t: std::array::from_fn(|l| h8.t.0[4 * half + l]),
+                u: std::array::from_fn(|l| h8.u.0[4 * half + l]),
+                v: std::array::from_fn(|l| h8.v.0[4 * half + l]),
+            };
             for l in 0..4 {
                 let s = intersect_triangle(o, dirs[l], a, b, c, tmin, tmax[l]);
                 same_lane(s, &h, l, n, &mut checked);
+                same_lane(s, &h8(0), l, n, &mut checked);
+                same_lane(s, &h8(1), 3 - l, n, &mut checked);
             }
         }
         assert!(checked.0 > 20_000 && checked.1 > 20_000, "{checked:?}");

@@ -69,6 +69,7 @@
 //! per parallel task a scratch of one tile's slots, the list and its prepared triangles, and
 //! three stacks, about 31 KiB (reported as `peak_bytes`), nothing per ray.
 
+mod origin;
 mod tile;
 
 use crate::accel::kdtree::{BuildConfig, KdTree};

@@ -1,6 +1,7 @@
 //! One tile: its rays, its shaft, its relevant-triangle list, and the proof that decides, ray by
 //! ray, whether the list's answer is the tree's (§3 of the paper; the rule is in `mod.rs`).
 
+use super::origin::{Runs, TileSoa};
 use super::{Config, Counters};
 use crate::accel::kdtree::{KdTree, MAX_DEPTH};
 use crate::geom::shaft::{BoxPlanes, Shaft};
@@ -40,11 +41,11 @@ pub enum Kind {
 /// Per-chunk scratch (allocated once per chunk, never per ray or node).
 pub struct Scratch {
     /// The tile's ray indices.
-    idx: Vec<usize>,
+    pub(super) idx: Vec<usize>,
     /// Which of them are answered.
     done: Vec<bool>,
     /// The relevant-triangle list.
-    list: Vec<u32>,
+    pub(super) list: Vec<u32>,
     /// The shaft walk's stack.
     cells: Vec<(u32, Aabb, BoxPlanes)>,
     /// The single-ray walk's stack.
@@ -56,7 +57,9 @@ pub struct Scratch {
     /// Slots still to answer.
     pending: Vec<usize>,
     /// The list's triangles prepared for the tile's origin (four rays per test).
-    tris: Vec<TriFromOrigin>,
+    pub(super) tris: Vec<TriFromOrigin>,
+    /// The tile's rays as structure-of-arrays (`origin.rs`).
+    pub(super) soa: TileSoa,
 }
 
 impl Scratch {
@@ -72,6 +75,7 @@ impl Scratch {
             best: Vec::with_capacity(rays),
             pending: Vec::with_capacity(rays),
             tris: Vec::with_capacity(max_list),
+            soa: TileSoa::with_capacity(rays),
         }
     }
 
@@ -86,6 +90,7 @@ impl Scratch {
             + self.best.capacity() * std::mem::size_of::<Best>()
             + self.pending.capacity() * 8
             + self.tris.capacity() * std::mem::size_of::<TriFromOrigin>()
+            + self.soa.bytes()
     }
 }
 
@@ -125,7 +130,7 @@ impl Ctx<'_> {
     }
 
     /// Rays `ids` (1 to 4) through the tree as one packet; each charged the packet's work.
-    fn walk4(
+    pub(super) fn walk4(
         &self,
         ids: &[usize],
         start: usize,
@@ -167,7 +172,7 @@ impl Ctx<'_> {
 
     /// Walks the tree with the shaft, collecting into `s.list` (sorted, deduplicated) every
     /// triangle whose box the shaft may meet; false when the list would exceed `max_list`.
-    fn collect(&self, shaft: &Shaft, s: &mut Scratch, c: &mut Counters) -> bool {
+    pub(super) fn collect(&self, shaft: &Shaft, s: &mut Scratch, c: &mut Counters) -> bool {
         let (tree, soup) = (self.tree, self.soup);
         let limit = self.cfg.max_list;
         s.list.clear();
@@ -231,12 +236,6 @@ impl Ctx<'_> {
         let a = (ns as f64).sqrt().round() as usize;
         let a = if a * a == ns { a } else { 1 };
         let at = |i: usize, j: usize, k: usize| band.base + (j * band.width + i) * ns + k;
-        s.idx.clear();
-        for j in j0..j0 + th {
-            for i in i0..i0 + tw {
-                s.idx.extend((0..ns).map(|k| at(i, j, k)));
-            }
-        }
         let (r, b) = (i0 + tw - 1, j0 + th - 1);
         let corners = [
             at(i0, j0, 0),
@@ -244,6 +243,21 @@ impl Ctx<'_> {
             at(r, b, ns - 1),
             at(i0, b, ns - a),
         ];
+        let rows = Runs {
+            first: at(i0, j0, 0),
+            stride: band.width * ns,
+            len: tw * ns,
+            count: th,
+        };
+        if !ANY && self.origin_tile(rows, corners, start, s, c, cost, emit) {
+            return;
+        }
+        s.idx.clear();
+        for j in j0..j0 + th {
+            for i in i0..i0 + tw {
+                s.idx.extend((0..ns).map(|k| at(i, j, k)));
+            }
+        }
         self.shaft_tile::<ANY>(Kind::Origin(corners), start, s, c, cost, emit);
     }
 

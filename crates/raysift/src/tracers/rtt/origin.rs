@@ -1,0 +1,360 @@
+//! Tiles of rays from one origin (camera tiles, grids) for closest hits: the vector path of
+//! `tile.rs`'s steps 2–4, on the tile's rays gathered into structure-of-arrays.
+//!
+//! Same shaft, same list, same proof as `tile.rs` (so the same answers and counters); what
+//! changes is how the list is tested: `L::N` rays at a time (eight in code compiled for AVX2,
+//! four elsewhere) through [`TriFromOrigin::intersect_lanes`], each lane keeping its best hit in
+//! vector registers, and the depth proof run in the same pass in f32 with a margin that bounds
+//! its rounding (see [`PROOF_MARGIN`]); a lane the f32 proof cannot settle gets the f64 test of
+//! `tile.rs`. Corner rays are gathered last: they shape the shaft, but their answers come from
+//! the tree, so the list pass skips them.
+
+use super::tile::{Ctx, Scratch};
+use super::Counters;
+use crate::geom::lanes::{self, Lanes, Width};
+#[cfg(target_arch = "x86_64")]
+use crate::geom::lanes::F32x8;
+use crate::geom::shaft::Shaft;
+use crate::geom::TriFromOrigin;
+use crate::rays::MISS;
+use crate::tracer::CostMut;
+use crate::tracers::kdtree::Best;
+use glam::{Vec3, Vec4};
+
+/// Relative margin of the f32 depth proof. In real numbers `depth = t · (m·d)`; computed in f32
+/// with `m` rounded to f32, `m·d` is off by at most `5·2^-24·|d|` (three products, two sums and
+/// the rounding of `m`, each within `2^-24` of `Σ|m_k d_k| <= |d|`), and a fitted direction has
+/// `m·d >= MIN_COS·|d| = 0.2·|d|`, so the relative error is at most `25·2^-24 ≈ 1.5e-6`, plus
+/// `2^-24` for the product with `t` and `2^-24` for rounding the cap to f32. A lane whose f32
+/// depth is at most `cap·(1 − 4e-6)` therefore has its real depth below the cap.
+pub const PROOF_MARGIN: f64 = 4e-6;
+
+/// One tile's rays, structure-of-arrays, padded to whole vectors: slots `0..inner` are the rays
+/// the list answers, the corners follow.
+#[derive(Default)]
+pub struct TileSoa {
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    dz: Vec<f32>,
+    tmax: Vec<f32>,
+    ray: Vec<usize>,
+    /// List answers per inner slot: distance, barycentrics, list position (`-1`: none).
+    t: Vec<f32>,
+    u: Vec<f32>,
+    v: Vec<f32>,
+    j: Vec<f32>,
+    /// Per group of `L::N` slots, the lanes the f32 proof settles.
+    proven: Vec<u32>,
+}
+
+/// Widest vector the list pass uses.
+const MAX_LANES: usize = 8;
+
+impl TileSoa {
+    /// Room for tiles of `rays` rays.
+    pub fn with_capacity(rays: usize) -> Self {
+        let n = rays + MAX_LANES;
+        let f = || Vec::with_capacity(n);
+        Self {
+            dx: f(),
+            dy: f(),
+            dz: f(),
+            tmax: f(),
+            ray: Vec::with_capacity(n),
+            t: f(),
+            u: f(),
+            v: f(),
+            j: f(),
+            proven: Vec::with_capacity(n.div_ceil(4)),
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        let f = |v: &Vec<f32>| v.capacity() * 4;
+        f(&self.dx) + f(&self.dy) + f(&self.dz) + f(&self.tmax)
+            + self.ray.capacity() * 8
+            + f(&self.t) + f(&self.u) + f(&self.v) + f(&self.j)
+            + self.proven.capacity() * 4
+    }
+
+    fn push(&mut self, d: Vec3, tmax: f32, ray: usize) {
+        self.dx.push(d.x);
+        self.dy.push(d.y);
+        self.dz.push(d.z);
+        self.tmax.push(tmax);
+        self.ray.push(ray);
+    }
+
+    fn swap(&mut self, a: usize, b: usize) {
+        for v in [&mut self.dx, &mut self.dy, &mut self.dz, &mut self.tmax] {
+            v.swap(a, b);
+        }
+        self.ray.swap(a, b);
+    }
+
+    fn clear(&mut self) {
+        for v in [&mut self.dx, &mut self.dy, &mut self.dz, &mut self.tmax] {
+            v.clear();
+        }
+        self.ray.clear();
+    }
+}
+
+/// The list pass over slots `0..n` of `soa`, `L::N` at a time: each lane's closest hit among
+/// `tris` (list order is ascending primitive id, so a tie keeps the earlier triangle, as
+/// [`crate::tracer::closer`] does) and whether the f32 proof settles it (depth at most `cap`).
+#[inline(always)]
+fn list_pass<L: Lanes>(
+    tris: &[TriFromOrigin],
+    soa: &mut TileSoa,
+    n: usize,
+    tmin: f32,
+    m: [f32; 3],
+    cap: f32,
+) {
+    let groups = n.div_ceil(L::N);
+    for v in [&mut soa.t, &mut soa.u, &mut soa.v, &mut soa.j] {
+        v.resize(groups * L::N, 0.0);
+    }
+    soa.proven.clear();
+    let ld = |v: &[f32], g: usize| L::from_fn(|l| v[g + l]);
+    let zero = L::splat(0.0);
+    for g in (0..groups * L::N).step_by(L::N) {
+        let d = [ld(&soa.dx, g), ld(&soa.dy, g), ld(&soa.dz, g)];
+        let mut bt = ld(&soa.tmax, g);
+        let (mut bu, mut bv, mut bj) = (zero, zero, L::splat(-1.0));
+        for (j, tri) in tris.iter().enumerate() {
+            let h = tri.intersect_lanes(d, tmin, bt);
+            if h.mask != 0 {
+                let take = h.hits & (bt.cmpgt(h.t) | zero.cmpgt(bj));
+                bt = L::select(take, h.t, bt);
+                bu = L::select(take, h.u, bu);
+                bv = L::select(take, h.v, bv);
+                bj = L::select(take, L::splat(j as f32), bj);
+            }
+        }
+        let depth = bt * (L::splat(m[0]) * d[0] + L::splat(m[1]) * d[1] + L::splat(m[2]) * d[2]);
+        soa.proven.push(L::bitmask(depth.cmple(L::splat(cap))));
+        for l in 0..L::N {
+            soa.t[g + l] = bt.lane(l);
+            soa.u[g + l] = bu.lane(l);
+            soa.v[g + l] = bv.lane(l);
+            soa.j[g + l] = bj.lane(l);
+        }
+    }
+}
+
+/// [`list_pass`] eight lanes at a time, compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 ([`lanes::width`] is [`Width::Eight`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn list_pass_avx2(
+    tris: &[TriFromOrigin],
+    soa: &mut TileSoa,
+    n: usize,
+    tmin: f32,
+    m: [f32; 3],
+    cap: f32,
+) {
+    list_pass::<F32x8>(tris, soa, n, tmin, m, cap)
+}
+
+/// A tile's rays as runs of consecutive rays: run `r` is `first + r·stride ..` of `len` rays,
+/// `r < count` (the rows of an image tile, with all their samples).
+#[derive(Clone, Copy, Debug)]
+pub struct Runs {
+    /// First ray of the first run.
+    pub first: usize,
+    /// Rays from one run's start to the next.
+    pub stride: usize,
+    /// Rays per run.
+    pub len: usize,
+    /// Runs.
+    pub count: usize,
+}
+
+impl Ctx<'_> {
+    /// Traces the tile of rays `rows` (closest hits) whose corners are `corners` on the vector
+    /// path; false (nothing traced) when the tile is not for it: its rays do not share one origin
+    /// and one `tmin >= 0` bit for bit, or it has fewer than four rays. The shaft, the list and
+    /// the proof are `tile.rs`'s (the shaft's mean direction may differ by rounding: any
+    /// direction inside the rays' cone serves).
+    #[allow(clippy::too_many_arguments)]
+    pub fn origin_tile(
+        &self,
+        rows: Runs,
+        corners: [usize; 4],
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) -> bool {
+        let rays = self.rays;
+        if rows.len * rows.count < 4 {
+            return false;
+        }
+        let (o, tmin) = (rays.origin(rows.first), rays.tmin[rows.first]);
+        if !(tmin >= 0.0) {
+            return false;
+        }
+        let soa = &mut s.soa;
+        soa.clear();
+        let mut same = true;
+        for r in 0..rows.count {
+            let run = rows.first + r * rows.stride..rows.first + r * rows.stride + rows.len;
+            let all_eq = |v: &[f32], x: f32| v.iter().fold(true, |a, &y| a & (y == x));
+            same &= all_eq(&rays.ox[run.clone()], o.x)
+                & all_eq(&rays.oy[run.clone()], o.y)
+                & all_eq(&rays.oz[run.clone()], o.z)
+                & all_eq(&rays.tmin[run.clone()], tmin);
+            soa.dx.extend_from_slice(&rays.dx[run.clone()]);
+            soa.dy.extend_from_slice(&rays.dy[run.clone()]);
+            soa.dz.extend_from_slice(&rays.dz[run.clone()]);
+            soa.tmax.extend_from_slice(&rays.tmax[run.clone()]);
+            soa.ray.extend(run);
+        }
+        if !same {
+            return false;
+        }
+        // The distinct corners, moved to the end (slots beyond `inner`), largest slot first so
+        // that each swap takes an inner ray.
+        let slot = |i: usize| {
+            let (r, k) = ((i - rows.first) / rows.stride, (i - rows.first) % rows.stride);
+            r * rows.len + k
+        };
+        let mut ids = [0usize; 4];
+        let mut nc = 0;
+        for &i in &corners {
+            if !ids[..nc].contains(&i) {
+                ids[nc] = i;
+                nc += 1;
+            }
+        }
+        ids[..nc].sort_unstable_by(|a, b| b.cmp(a));
+        let all = soa.ray.len();
+        let mut inner = all;
+        for &i in &ids[..nc] {
+            inner -= 1;
+            soa.swap(slot(i), inner);
+        }
+        debug_assert!(ids[..nc].iter().all(|i| soa.ray[inner..all].contains(i)));
+        let dlow = (0..inner).fold(f32::INFINITY, |m, k| {
+            m.min(soa.dx[k].abs().max(soa.dy[k].abs()).max(soa.dz[k].abs()))
+        });
+        c.tiles += 1;
+        let fit = Shaft::fit_slices(o.as_dvec3(), &soa.dx, &soa.dy, &soa.dz);
+        let Some(mut shaft) = fit else {
+            for k in 0..all {
+                let i = s.soa.ray[k];
+                c.fallback_rays += 1;
+                let best = self.walk::<false>(i, start, s, c, cost);
+                emit(i, best);
+            }
+            return true;
+        };
+        // Capped at the segments' far ends, and at the corners' closest hits grown by
+        // `cap_growth`.
+        let far = soa.tmax[..all].iter().fold(0.0f32, |a, &t| a.max(t));
+        let mut cap = if far == f32::INFINITY {
+            f64::INFINITY
+        } else {
+            (0..all).fold(0.0f64, |h, k| {
+                h.max(shaft.depth(Vec3::new(soa.dx[k], soa.dy[k], soa.dz[k]), soa.tmax[k]))
+            })
+        };
+        let hits = self.walk4(&ids[..nc], start, s, c, cost);
+        let mut deepest = 0.0f64;
+        for (&i, &best) in ids[..nc].iter().zip(&hits) {
+            c.corner_rays += 1;
+            deepest = deepest.max(if best.1 == MISS {
+                f64::INFINITY
+            } else {
+                shaft.depth(rays.dir(i), best.0)
+            });
+            emit(i, best);
+        }
+        cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
+        shaft.set_cap(cap);
+        let before = (c.shaft_nodes, c.shaft_boxes);
+        if !self.collect(&shaft, s, c) {
+            for k in 0..inner {
+                let i = s.soa.ray[k];
+                c.fallback_rays += 1;
+                let best = self.walk::<false>(i, start, s, c, cost);
+                emit(i, best);
+            }
+            return true;
+        }
+        c.tiles_listed += 1;
+        let len = s.list.len() as u64;
+        c.list_len += len;
+        let shared = (c.shaft_nodes - before.0, c.shaft_boxes - before.1);
+        if inner == 0 {
+            return true;
+        }
+        let soup = self.soup;
+        s.tris.clear();
+        s.tris.extend(s.list.iter().map(|&p| {
+            let k = p as usize;
+            TriFromOrigin::new(o, soup.v0[k], soup.v1[k], soup.v2[k], dlow)
+        }));
+        // Whole vectors: pad lanes repeat slot 0 (their answers are never read).
+        let soa = &mut s.soa;
+        while soa.dx.len() < inner.next_multiple_of(MAX_LANES) {
+            soa.push(Vec3::new(soa.dx[0], soa.dy[0], soa.dz[0]), soa.tmax[0], soa.ray[0]);
+        }
+        let m = shaft.m.as_vec3().to_array();
+        let cap32 = if cap == f64::INFINITY {
+            f32::INFINITY
+        } else {
+            (cap * (1.0 - PROOF_MARGIN)) as f32
+        };
+        #[cfg(target_arch = "x86_64")]
+        let w = match lanes::width() {
+            Width::Eight => {
+                // SAFETY: `list_pass_avx2` needs AVX2; `width()` is `Eight` only on CPUs that
+                // have it.
+                unsafe { list_pass_avx2(&s.tris, soa, inner, tmin, m, cap32) };
+                8
+            }
+            Width::Four => {
+                list_pass::<Vec4>(&s.tris, soa, inner, tmin, m, cap32);
+                4
+            }
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let w = {
+            list_pass::<Vec4>(&s.tris, soa, inner, tmin, m, cap32);
+            4
+        };
+        for k in 0..inner {
+            let soa = &s.soa;
+            let i = soa.ray[k];
+            c.list_tests += len;
+            if let Some(cost) = cost {
+                cost.add(i - start, shared.0, shared.1 + len, len);
+            }
+            let j = soa.j[k];
+            let best: Best = if j < 0.0 {
+                (soa.tmax[k], MISS, 0.0, 0.0)
+            } else {
+                (soa.t[k], s.list[j as usize], soa.u[k], soa.v[k])
+            };
+            // The f32 proof, or `tile.rs`'s f64 one for lanes it cannot settle.
+            let settled = soa.proven[k / w] >> (k % w) & 1 != 0;
+            if settled || shaft.depth(rays.dir(i), best.0) <= cap {
+                c.list_rays += 1;
+                emit(i, best);
+            } else {
+                c.fallback_rays += 1;
+                let best = self.walk::<false>(i, start, s, c, cost);
+                emit(i, best);
+            }
+        }
+        true
+    }
+}
