@@ -22,6 +22,7 @@
 //! the segment's origin instead, so the distance the tolerance is taken of is at least
 //! [`Shaft::scale`], twice the largest apex-to-end distance.
 
+use super::lanes::Lanes;
 use glam::{DVec3, Vec3};
 
 /// Relative tolerance of [`Shaft::box_outside`] (see the module doc).
@@ -29,6 +30,9 @@ pub const TOL: f64 = 1e-5;
 
 /// Padding of the fitted rectangle, in projected units.
 const PAD: f64 = 1e-9;
+
+/// Relative padding of [`Shaft::fit_lanes`]' rectangle (its f32 rounding, with a factor 3).
+pub const FIT32_PAD: f64 = 4e-6;
 
 /// Smallest `m·e` a fitted direction may have (the shaft must be well inside a half-space).
 pub const MIN_COS: f64 = 0.2;
@@ -90,40 +94,61 @@ impl Shaft {
         Some(Self::around(apex, m, u, v, [u0, u1, v0, v1]))
     }
 
-    /// [`Shaft::fit`] of the directions `(dx[k], dy[k], dz[k])` (equal lengths), written for
-    /// the compiler to vectorise: no early exit, the sum in four partial sums (any positive
-    /// combination of the directions is inside their cone, so its rounding does not matter).
+    /// [`Shaft::fit`] of the directions `(dx[k], dy[k], dz[k])` (equal lengths, a multiple of
+    /// `L::N`), `L::N` at a time in f32, for tiles of many rays.
+    ///
+    /// The frame `(m, u, v)` is f64 as in [`Shaft::fit`] (`m` from an f32 sum: any positive
+    /// combination of the directions is inside their cone); the projections are computed with
+    /// the frame rounded to f32, and the rectangle is padded by their error bound. Each f32 dot
+    /// product with a frame vector is within `4·2^-24·|d|` of the f64 frame's (`2^-24` for
+    /// rounding the frame, `3·2^-24` for the products and sums), and a kept direction has
+    /// `m·d >= MIN_COS·|d|` (checked as `z² >= 1.0025·MIN_COS²·|d|²` in f32, a margin far above
+    /// the rounding), so each projection `(u·d)/(m·d)` is within `1.3e-6·(1 + |p|)`, plus one
+    /// rounding of the quotient: [`FIT32_PAD`]` = 4e-6·(1 + max |p|)` covers it.
     #[inline(always)]
-    pub fn fit_slices(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Self> {
+    pub fn fit_lanes<L: Lanes>(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Self> {
         let n = dx.len();
-        let (dy, dz) = (&dy[..n], &dz[..n]);
-        let d = |k: usize| DVec3::new(dx[k] as f64, dy[k] as f64, dz[k] as f64);
-        let mut part = [DVec3::ZERO; 4];
-        for k in 0..n {
-            part[k % 4] += d(k);
+        assert!(n.is_multiple_of(L::N) && dy.len() == n && dz.len() == n);
+        let ld = |v: &[f32], k: usize| L::from_fn(|l| v[k + l]);
+        let zero = L::splat(0.0);
+        let mut sum = [zero; 3];
+        for k in (0..n).step_by(L::N) {
+            sum = [sum[0] + ld(dx, k), sum[1] + ld(dy, k), sum[2] + ld(dz, k)];
         }
-        let m = ((part[0] + part[1]) + (part[2] + part[3])).try_normalize()?;
+        let total = |v: L| (0..L::N).map(|l| v.lane(l) as f64).sum::<f64>();
+        let m = DVec3::new(total(sum[0]), total(sum[1]), total(sum[2])).try_normalize()?;
         let u = m.any_orthonormal_vector();
         let v = m.cross(u);
-        let mut ok = true;
-        let (mut u0, mut u1, mut v0, mut v1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for k in 0..n {
-            let d = d(k);
-            let (z, l2) = (m.dot(d), d.length_squared());
-            ok &= z > 0.0 && z * z >= MIN_COS * MIN_COS * l2 && l2.is_finite();
-            let iz = 1.0 / z;
-            let (pu, pv) = (u.dot(d) * iz, v.dot(d) * iz);
-            u0 = if pu < u0 { pu } else { u0 };
-            u1 = if pu > u1 { pu } else { u1 };
-            v0 = if pv < v0 { pv } else { v0 };
-            v1 = if pv > v1 { pv } else { v1 };
+        let f = |a: DVec3| [L::splat(a.x as f32), L::splat(a.y as f32), L::splat(a.z as f32)];
+        let (m32, u32, v32) = (f(m), f(u), f(v));
+        let dot = |a: &[L; 3], d: &[L; 3]| a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
+        let cos2 = L::splat((1.0025 * MIN_COS * MIN_COS) as f32);
+        let big = L::splat(f32::MAX);
+        let mut ok = L::mask_splat(true);
+        let (mut lo_u, mut hi_u) = (L::splat(f32::INFINITY), L::splat(f32::NEG_INFINITY));
+        let (mut lo_v, mut hi_v) = (lo_u, hi_u);
+        for k in (0..n).step_by(L::N) {
+            let d = [ld(dx, k), ld(dy, k), ld(dz, k)];
+            let (z, l2) = (dot(&m32, &d), dot(&d, &d));
+            ok = ok & z.cmpgt(zero) & (z * z).cmpge(cos2 * l2) & l2.cmple(big);
+            let iz = L::splat(1.0) / z;
+            let (pu, pv) = (dot(&u32, &d) * iz, dot(&v32, &d) * iz);
+            (lo_u, hi_u) = (lo_u.min(pu), hi_u.max(pu));
+            (lo_v, hi_v) = (lo_v.min(pv), hi_v.max(pv));
         }
-        ok.then(|| Self::around(apex, m, u, v, [u0, u1, v0, v1]))
+        if L::bitmask(ok) != (1u32 << L::N) - 1 || n == 0 {
+            return None;
+        }
+        let lanes = |v: L| (0..L::N).map(move |l| v.lane(l) as f64);
+        let rect = [
+            lanes(lo_u).fold(f64::INFINITY, f64::min),
+            lanes(hi_u).fold(f64::NEG_INFINITY, f64::max),
+            lanes(lo_v).fold(f64::INFINITY, f64::min),
+            lanes(hi_v).fold(f64::NEG_INFINITY, f64::max),
+        ];
+        let pad = FIT32_PAD * (1.0 + rect.iter().fold(0.0f64, |a, r| a.max(r.abs())));
+        let [u0, u1, v0, v1] = rect;
+        Some(Self::around(apex, m, u, v, [u0 - pad, u1 + pad, v0 - pad, v1 + pad]))
     }
 
     /// The shaft of apex `apex` and frame `(m, u, v)` around the projected rectangle
@@ -338,26 +363,39 @@ mod tests {
     }
 
     #[test]
-    fn slices_fit_like_the_iterator() {
-        let dirs: Vec<Vec3> = (0..37)
-            .map(|k| Vec3::new(0.01 * (k % 7) as f32 - 0.03, 0.002 * k as f32 - 0.04, -1.0))
-            .collect();
-        let soa = |a: usize| dirs.iter().map(|d| d[a]).collect::<Vec<f32>>();
-        let (dx, dy, dz) = (soa(0), soa(1), soa(2));
-        let apex = DVec3::new(1.0, 2.0, 3.0);
-        let a = Shaft::fit(apex, dirs.iter().map(|d| d.as_dvec3())).unwrap();
-        let b = Shaft::fit_slices(apex, &dx, &dy, &dz).unwrap();
-        // Every direction inside both (the sums' rounding may move `m` by an ulp or so).
-        for d in &dirs {
-            let e = d.as_dvec3();
-            assert!(a.sides.iter().chain(&b.sides).all(|n| n.dot(e) >= 0.0));
+    fn lanes_fit_like_the_iterator() {
+        use crate::geom::lanes::F32x8;
+        use glam::Vec4;
+        // Tiles of a narrow camera (the pad must not lose a direction on the rectangle's edge),
+        // wide groups, and far-off-axis ones.
+        for (spread, centre) in [(1e-4f32, 0.0f32), (0.003, 0.5), (0.3, -1.5), (1.0, 0.0)] {
+            let dirs: Vec<Vec3> = (0..40)
+                .map(|k| {
+                    let (a, b) = ((k % 8) as f32 / 7.0 - 0.5, (k / 8) as f32 / 4.0 - 0.5);
+                    Vec3::new(centre + spread * a, 0.3 * centre + spread * b, -1.0)
+                })
+                .collect();
+            let soa = |a: usize| dirs.iter().map(|d| d[a]).collect::<Vec<f32>>();
+            let (dx, dy, dz) = (soa(0), soa(1), soa(2));
+            let apex = DVec3::new(1.0, 2.0, 3.0);
+            let a = Shaft::fit(apex, dirs.iter().map(|d| d.as_dvec3())).unwrap();
+            let b4 = Shaft::fit_lanes::<Vec4>(apex, &dx, &dy, &dz).unwrap();
+            let b8 = Shaft::fit_lanes::<F32x8>(apex, &dx, &dy, &dz).unwrap();
+            for d in &dirs {
+                let e = d.as_dvec3();
+                let sides = a.sides.iter().chain(&b4.sides).chain(&b8.sides);
+                assert!(sides.clone().all(|n| n.dot(e) >= 0.0), "{spread} {d}");
+            }
+            assert!((a.m - b8.m).length() < 1e-6);
         }
-        assert!((a.m - b.m).length() < 1e-12);
         // Unusable directions: zero, NaN, infinite, too wide.
+        let dirs = [Vec3::new(0.01, 0.0, -1.0); 8];
         for bad in [Vec3::ZERO, Vec3::NAN, Vec3::new(0.0, f32::INFINITY, -1.0), Vec3::X] {
-            let (mut x, mut y, mut z) = (dx.clone(), dy.clone(), dz.clone());
-            (x[5], y[5], z[5]) = (bad.x, bad.y, bad.z);
-            assert!(Shaft::fit_slices(apex, &x, &y, &z).is_none(), "{bad}");
+            let mut d = dirs;
+            d[5] = bad;
+            let soa = |a: usize| d.iter().map(|d| d[a]).collect::<Vec<f32>>();
+            let fit = Shaft::fit_lanes::<Vec4>(DVec3::ZERO, &soa(0), &soa(1), &soa(2));
+            assert!(fit.is_none(), "{bad}");
         }
     }
 

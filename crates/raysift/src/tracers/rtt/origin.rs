@@ -19,7 +19,7 @@ use crate::geom::TriFromOrigin;
 use crate::rays::MISS;
 use crate::tracer::CostMut;
 use crate::tracers::kdtree::Best;
-use glam::{Vec3, Vec4};
+use glam::{DVec3, Vec3, Vec4};
 
 /// Relative margin of the f32 depth proof. In real numbers `depth = t · (m·d)`; computed in f32
 /// with `m` rounded to f32, `m·d` is off by at most `5·2^-24·|d|` (three products, two sums and
@@ -176,6 +176,27 @@ pub struct Runs {
     pub count: usize,
 }
 
+/// [`Shaft::fit_lanes`] of the tile's slots (a whole number of [`MAX_LANES`]), at the CPU's width.
+fn fit(apex: DVec3, soa: &TileSoa) -> Option<Shaft> {
+    let (dx, dy, dz) = (&soa.dx[..], &soa.dy[..], &soa.dz[..]);
+    #[cfg(target_arch = "x86_64")]
+    if lanes::width() == Width::Eight {
+        // SAFETY: `fit_avx2` needs AVX2; `width()` is `Eight` only on CPUs that have it.
+        return unsafe { fit_avx2(apex, dx, dy, dz) };
+    }
+    Shaft::fit_lanes::<Vec4>(apex, dx, dy, dz)
+}
+
+/// [`Shaft::fit_lanes`] eight lanes at a time, compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 ([`lanes::width`] is [`Width::Eight`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fit_avx2(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Shaft> {
+    Shaft::fit_lanes::<F32x8>(apex, dx, dy, dz)
+}
+
 impl Ctx<'_> {
     /// Traces the tile of rays `rows` (closest hits) whose corners are `corners` on the vector
     /// path; false (nothing traced) when the tile is not for it: its rays do not share one origin
@@ -246,8 +267,11 @@ impl Ctx<'_> {
             m.min(soa.dx[k].abs().max(soa.dy[k].abs()).max(soa.dz[k].abs()))
         });
         c.tiles += 1;
-        let fit = Shaft::fit_slices(o.as_dvec3(), &soa.dx, &soa.dy, &soa.dz);
-        let Some(mut shaft) = fit else {
+        // Whole vectors: pad lanes repeat slot 0 (they change neither the fit nor an answer).
+        while soa.dx.len() < all.next_multiple_of(MAX_LANES) {
+            soa.push(Vec3::new(soa.dx[0], soa.dy[0], soa.dz[0]), soa.tmax[0], soa.ray[0]);
+        }
+        let Some(mut shaft) = fit(o.as_dvec3(), soa) else {
             for k in 0..all {
                 let i = s.soa.ray[k];
                 c.fallback_rays += 1;
@@ -302,11 +326,7 @@ impl Ctx<'_> {
             let k = p as usize;
             TriFromOrigin::new(o, soup.v0[k], soup.v1[k], soup.v2[k], dlow)
         }));
-        // Whole vectors: pad lanes repeat slot 0 (their answers are never read).
         let soa = &mut s.soa;
-        while soa.dx.len() < inner.next_multiple_of(MAX_LANES) {
-            soa.push(Vec3::new(soa.dx[0], soa.dy[0], soa.dz[0]), soa.tmax[0], soa.ray[0]);
-        }
         let m = shaft.m.as_vec3().to_array();
         let cap32 = if cap == f64::INFINITY {
             f32::INFINITY
