@@ -394,7 +394,10 @@ mod tests {
             let sign4 = Lanes::sign_bit(half(&a, 0)).bitmask()
                 | Lanes::sign_bit(half(&a, 1)).bitmask() << 4;
             assert_eq!(sign8, sign4);
-            assert_eq!(sign8, (0..8).fold(0, |m, i| m | (a[i].is_sign_negative() as u32) << i));
+            assert_eq!(
+                sign8,
+                (0..8).fold(0, |m, i| m | (a[i].is_sign_negative() as u32) << i)
+            );
             for (f8, f4) in cmps {
                 let m8 = f8(a8, b8);
                 let m4 = f4(half(&a, 0), half(&b, 0)).bitmask()

@@ -119,7 +119,13 @@ impl Shaft {
         let m = DVec3::new(total(sum[0]), total(sum[1]), total(sum[2])).try_normalize()?;
         let u = m.any_orthonormal_vector();
         let v = m.cross(u);
-        let f = |a: DVec3| [L::splat(a.x as f32), L::splat(a.y as f32), L::splat(a.z as f32)];
+        let f = |a: DVec3| {
+            [
+                L::splat(a.x as f32),
+                L::splat(a.y as f32),
+                L::splat(a.z as f32),
+            ]
+        };
         let (m32, u32, v32) = (f(m), f(u), f(v));
         let dot = |a: &[L; 3], d: &[L; 3]| a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
         let cos2 = L::splat((1.0025 * MIN_COS * MIN_COS) as f32);
@@ -148,7 +154,13 @@ impl Shaft {
         ];
         let pad = FIT32_PAD * (1.0 + rect.iter().fold(0.0f64, |a, r| a.max(r.abs())));
         let [u0, u1, v0, v1] = rect;
-        Some(Self::around(apex, m, u, v, [u0 - pad, u1 + pad, v0 - pad, v1 + pad]))
+        Some(Self::around(
+            apex,
+            m,
+            u,
+            v,
+            [u0 - pad, u1 + pad, v0 - pad, v1 + pad],
+        ))
     }
 
     /// The shaft of apex `apex` and frame `(m, u, v)` around the projected rectangle
@@ -390,7 +402,12 @@ mod tests {
         }
         // Unusable directions: zero, NaN, infinite, too wide.
         let dirs = [Vec3::new(0.01, 0.0, -1.0); 8];
-        for bad in [Vec3::ZERO, Vec3::NAN, Vec3::new(0.0, f32::INFINITY, -1.0), Vec3::X] {
+        for bad in [
+            Vec3::ZERO,
+            Vec3::NAN,
+            Vec3::new(0.0, f32::INFINITY, -1.0),
+            Vec3::X,
+        ] {
             let mut d = dirs;
             d[5] = bad;
             let soa = |a: usize| d.iter().map(|d| d[a]).collect::<Vec<f32>>();

@@ -305,10 +305,8 @@ impl TriFromOrigin {
         let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
         let near_enough = ((t - moved).abs() * dmax).cmple(L::splat(self.reach));
         let gated = L::select(inside, t, moved);
-        let ok = nonempty
-            & (inside | near_enough)
-            & gated.cmpge(L::splat(tmin))
-            & gated.cmple(tmax);
+        let ok =
+            nonempty & (inside | near_enough) & gated.cmpge(L::splat(tmin)) & gated.cmple(tmax);
         (gated, ok)
     }
 }

@@ -89,8 +89,9 @@ use tile::{Band, Ctx, Scratch};
 pub struct Config {
     /// Tile side in pixels (2..=16). Default 4 (the paper's 4×4 tiles).
     pub tile: usize,
-    /// Longest relevant-triangle list a tile may use (0..=4096; 0: only tiles whose shaft holds
-    /// no triangle answer rays from their list). Default 64.
+    /// Longest relevant-triangle list a tile of 16 rays may use (0..=4096; 0: only tiles whose
+    /// shaft holds no triangle answer rays from their list). Default 64. A tile of `R` rays may
+    /// use [`Config::list_limit`]`(R)`: a list's cost and the walks it saves are both per ray.
     pub max_list: usize,
     /// Relative growth of the cap beyond the deepest corner hit (>= 0). Default 1e-3.
     pub cap_growth: f64,
@@ -110,6 +111,13 @@ impl Default for Config {
 }
 
 impl Config {
+    /// Longest list a tile of `rays` rays may use: `max_list · ⌊rays / 16⌋`, at least
+    /// `max_list` and at most 16 times it (antialiased image tiles: 4×4 pixels of 4×4 samples
+    /// may use 1,024 triangles by default; measured in BENCHMARKS.md § RTT).
+    pub fn list_limit(&self, rays: usize) -> usize {
+        self.max_list * (rays / 16).clamp(1, 16)
+    }
+
     fn check(&self) -> Result<()> {
         let bad = |m: String| Err(Error::Invalid(format!("tracer rtt: {m}")));
         if !(2..=16).contains(&self.tile) {
@@ -145,7 +153,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     },
     OptionDoc {
         key: "max_list",
-        doc: "longest relevant-triangle list a tile uses (0..=4096; 0: only empty shafts answer rays)",
+        doc: "longest relevant-triangle list a tile of 16 rays uses, R rays: max_list·R/16, at most 16× (0..=4096; 0: only empty shafts answer rays)",
     },
     OptionDoc {
         key: "cap_growth",
@@ -184,6 +192,9 @@ crate::counters! {
         tiles,
         /// Tiles whose relevant-triangle list was built (at most `max_list` long).
         tiles_listed,
+        /// Tiles of rays from one origin whose list was too long, traced as four smaller tiles
+        /// (the quarters count as tiles too).
+        tiles_split,
         /// Corner rays traced through the tree to set a tile's cap.
         corner_rays,
         /// Rays answered from their tile's list, without traversal.
@@ -364,7 +375,7 @@ impl Rtt {
             }
             Plan::Segments | Plan::Lines => {
                 let g = self.cfg.segment_group;
-                let mut s = Scratch::new(g, self.cfg.max_list);
+                let mut s = Scratch::new(g, self.cfg.list_limit(g));
                 for first in range.clone().step_by(g) {
                     let group = first..(first + g).min(range.end);
                     if matches!(plan, Plan::Segments) {
@@ -376,7 +387,7 @@ impl Rtt {
                 return c;
             }
         };
-        let mut s = Scratch::new(t * t * samples, self.cfg.max_list);
+        let mut s = Scratch::new(t * t * samples, self.cfg.list_limit(t * t * samples));
         for band in bands {
             for j0 in (0..band.rows).step_by(t) {
                 for i0 in (0..band.width).step_by(t) {
@@ -403,7 +414,7 @@ impl Rtt {
             Plan::Grids { .. } => self.cfg.tile * self.cfg.tile,
             Plan::Segments | Plan::Lines => self.cfg.segment_group,
         };
-        Scratch::new(rays, self.cfg.max_list).bytes()
+        Scratch::new(rays, self.cfg.list_limit(rays)).bytes()
     }
 }
 

@@ -11,9 +11,9 @@
 
 use super::tile::{Ctx, Scratch};
 use super::Counters;
-use crate::geom::lanes::{self, Lanes, Width};
 #[cfg(target_arch = "x86_64")]
 use crate::geom::lanes::F32x8;
+use crate::geom::lanes::{self, Lanes, Width};
 use crate::geom::shaft::Shaft;
 use crate::geom::TriFromOrigin;
 use crate::rays::MISS;
@@ -72,9 +72,15 @@ impl TileSoa {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         let f = |v: &Vec<f32>| v.capacity() * 4;
-        f(&self.dx) + f(&self.dy) + f(&self.dz) + f(&self.tmax)
+        f(&self.dx)
+            + f(&self.dy)
+            + f(&self.dz)
+            + f(&self.tmax)
             + self.ray.capacity() * 8
-            + f(&self.t) + f(&self.u) + f(&self.v) + f(&self.j)
+            + f(&self.t)
+            + f(&self.u)
+            + f(&self.v)
+            + f(&self.j)
             + self.proven.capacity() * 4
     }
 
@@ -199,28 +205,31 @@ unsafe fn fit_avx2(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Sh
 
 impl Ctx<'_> {
     /// Traces the tile of rays `rows` (closest hits) whose corners are `corners` on the vector
-    /// path; false (nothing traced) when the tile is not for it: its rays do not share one origin
-    /// and one `tmin >= 0` bit for bit, or it has fewer than four rays. The shaft, the list and
-    /// the proof are `tile.rs`'s (the shaft's mean direction may differ by rounding: any
-    /// direction inside the rays' cone serves).
+    /// path. [`Origin::NotForIt`] (nothing traced) when its rays do not share one origin and one
+    /// `tmin >= 0` bit for bit, or it has fewer than four rays. The shaft, the list and the proof
+    /// are `tile.rs`'s (the shaft's mean direction may differ by rounding: any direction inside
+    /// the rays' cone serves). When the list is too long, the inner rays are walked through the
+    /// tree, or, with `split`, left to the caller ([`Origin::Overflow`]: only the corners are
+    /// answered), which traces the tile's quarters as tiles of their own.
     #[allow(clippy::too_many_arguments)]
     pub fn origin_tile(
         &self,
         rows: Runs,
         corners: [usize; 4],
+        split: bool,
         start: usize,
         s: &mut Scratch,
         c: &mut Counters,
         cost: &mut Option<CostMut<'_>>,
         emit: &mut impl FnMut(usize, Best),
-    ) -> bool {
+    ) -> Origin {
         let rays = self.rays;
         if rows.len * rows.count < 4 {
-            return false;
+            return Origin::NotForIt;
         }
         let (o, tmin) = (rays.origin(rows.first), rays.tmin[rows.first]);
         if !(tmin >= 0.0) {
-            return false;
+            return Origin::NotForIt;
         }
         let soa = &mut s.soa;
         soa.clear();
@@ -239,12 +248,15 @@ impl Ctx<'_> {
             soa.ray.extend(run);
         }
         if !same {
-            return false;
+            return Origin::NotForIt;
         }
         // The distinct corners, moved to the end (slots beyond `inner`), largest slot first so
         // that each swap takes an inner ray.
         let slot = |i: usize| {
-            let (r, k) = ((i - rows.first) / rows.stride, (i - rows.first) % rows.stride);
+            let (r, k) = (
+                (i - rows.first) / rows.stride,
+                (i - rows.first) % rows.stride,
+            );
             r * rows.len + k
         };
         let mut ids = [0usize; 4];
@@ -269,7 +281,11 @@ impl Ctx<'_> {
         c.tiles += 1;
         // Whole vectors: pad lanes repeat slot 0 (they change neither the fit nor an answer).
         while soa.dx.len() < all.next_multiple_of(MAX_LANES) {
-            soa.push(Vec3::new(soa.dx[0], soa.dy[0], soa.dz[0]), soa.tmax[0], soa.ray[0]);
+            soa.push(
+                Vec3::new(soa.dx[0], soa.dy[0], soa.dz[0]),
+                soa.tmax[0],
+                soa.ray[0],
+            );
         }
         let Some(mut shaft) = fit(o.as_dvec3(), soa) else {
             for k in 0..all {
@@ -278,7 +294,7 @@ impl Ctx<'_> {
                 let best = self.walk::<false>(i, start, s, c, cost);
                 emit(i, best);
             }
-            return true;
+            return Origin::Traced;
         };
         // Capped at the segments' far ends, and at the corners' closest hits grown by
         // `cap_growth`.
@@ -304,21 +320,28 @@ impl Ctx<'_> {
         cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
         shaft.set_cap(cap);
         let before = (c.shaft_nodes, c.shaft_boxes);
-        if !self.collect(&shaft, s, c) {
+        if inner == 0 {
+            return Origin::Traced;
+        }
+        if !self.collect(&shaft, all, s, c) {
+            if split {
+                c.tiles_split += 1;
+                return Origin::Overflow;
+            }
             for k in 0..inner {
                 let i = s.soa.ray[k];
                 c.fallback_rays += 1;
                 let best = self.walk::<false>(i, start, s, c, cost);
                 emit(i, best);
             }
-            return true;
+            return Origin::Traced;
         }
         c.tiles_listed += 1;
         let len = s.list.len() as u64;
         c.list_len += len;
         let shared = (c.shaft_nodes - before.0, c.shaft_boxes - before.1);
         if inner == 0 {
-            return true;
+            return Origin::Traced;
         }
         let soup = self.soup;
         s.tris.clear();
@@ -375,6 +398,17 @@ impl Ctx<'_> {
                 emit(i, best);
             }
         }
-        true
+        Origin::Traced
     }
+}
+
+/// What [`Ctx::origin_tile`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// Every ray answered.
+    Traced,
+    /// The corners answered; the list was too long for the rest.
+    Overflow,
+    /// Nothing: the tile is not one of rays from one origin.
+    NotForIt,
 }

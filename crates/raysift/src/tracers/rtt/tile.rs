@@ -1,7 +1,7 @@
 //! One tile: its rays, its shaft, its relevant-triangle list, and the proof that decides, ray by
 //! ray, whether the list's answer is the tree's (§3 of the paper; the rule is in `mod.rs`).
 
-use super::origin::{Runs, TileSoa};
+use super::origin::{Origin, Runs, TileSoa};
 use super::{Config, Counters};
 use crate::accel::kdtree::{KdTree, MAX_DEPTH};
 use crate::geom::shaft::{BoxPlanes, Shaft};
@@ -63,7 +63,8 @@ pub struct Scratch {
 }
 
 impl Scratch {
-    /// Scratch for tiles of up to `rays` rays and lists of up to `max_list` triangles.
+    /// Scratch for tiles of up to `rays` rays and lists of up to `max_list` triangles (the
+    /// tile's [`Config::list_limit`]).
     pub fn new(rays: usize, max_list: usize) -> Self {
         Self {
             idx: Vec::with_capacity(rays),
@@ -170,11 +171,18 @@ impl Ctx<'_> {
         best
     }
 
-    /// Walks the tree with the shaft, collecting into `s.list` (sorted, deduplicated) every
-    /// triangle whose box the shaft may meet; false when the list would exceed `max_list`.
-    pub(super) fn collect(&self, shaft: &Shaft, s: &mut Scratch, c: &mut Counters) -> bool {
+    /// Walks the tree with the shaft of a tile of `rays` rays, collecting into `s.list` (sorted,
+    /// deduplicated) every triangle whose box the shaft may meet; false when the list would
+    /// exceed the tile's limit ([`Config::list_limit`]).
+    pub(super) fn collect(
+        &self,
+        shaft: &Shaft,
+        rays: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+    ) -> bool {
+        let limit = self.cfg.list_limit(rays);
         let (tree, soup) = (self.tree, self.soup);
-        let limit = self.cfg.max_list;
         s.list.clear();
         s.cells.clear();
         if tree.nodes.is_empty() {
@@ -249,8 +257,26 @@ impl Ctx<'_> {
             len: tw * ns,
             count: th,
         };
-        if !ANY && self.origin_tile(rows, corners, start, s, c, cost, emit) {
-            return;
+        if !ANY {
+            // Quarters of more than four rays have inner rays to answer from lists; smaller
+            // ones would only walk their corners (measured: no faster than single walks).
+            let split = tw * th > 1 && tw.div_ceil(2) * th.div_ceil(2) * ns > 4;
+            match self.origin_tile(rows, corners, split, start, s, c, cost, emit) {
+                Origin::Traced => return,
+                Origin::Overflow => {
+                    // The quarters (halves of a one-pixel-wide tile), each a tile of its own.
+                    let (w0, h0) = (tw.div_ceil(2), th.div_ceil(2));
+                    for (x, w) in [(i0, w0), (i0 + w0, tw - w0)] {
+                        for (y, h) in [(j0, h0), (j0 + h0, th - h0)] {
+                            if w > 0 && h > 0 {
+                                self.tile::<ANY>(band, (x, y, w, h), start, s, c, cost, emit);
+                            }
+                        }
+                    }
+                    return;
+                }
+                Origin::NotForIt => {}
+            }
         }
         s.idx.clear();
         for j in j0..j0 + th {
@@ -446,7 +472,7 @@ impl Ctx<'_> {
         }
         shaft.set_cap(cap);
         let before = (c.shaft_nodes, c.shaft_boxes);
-        if !self.collect(&shaft, s, c) {
+        if !self.collect(&shaft, s.idx.len(), s, c) {
             return self.fall_back::<ANY>(start, s, c, cost, emit);
         }
         c.tiles_listed += 1;
