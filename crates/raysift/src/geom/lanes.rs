@@ -27,6 +27,9 @@ pub trait Lanes:
     const N: usize;
     /// Every lane `v`.
     fn splat(v: f32) -> Self;
+    /// Every lane `v.x`, from a `v` whose four lanes are equal (kept splatted in memory: four
+    /// lanes load it as it is, a plain load instead of a load and a shuffle without AVX).
+    fn from_splat4(v: Vec4) -> Self;
     /// Lane `i` is `f(i)`.
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
     /// Lane `i`.
@@ -53,6 +56,8 @@ pub trait Lanes:
     fn cmple(self, o: Self) -> Self::Mask;
     /// `self == o`.
     fn cmpeq(self, o: Self) -> Self::Mask;
+    /// `self != o` (true for NaN).
+    fn cmpne(self, o: Self) -> Self::Mask;
     /// Every lane of the mask `v`.
     fn mask_splat(v: bool) -> Self::Mask;
     /// Bit `i` set when lane `i` of `m` is.
@@ -67,6 +72,10 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn splat(v: f32) -> Self {
         Vec4::splat(v)
+    }
+    #[inline(always)]
+    fn from_splat4(v: Vec4) -> Self {
+        v
     }
     #[inline(always)]
     fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
@@ -119,6 +128,10 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn cmpeq(self, o: Self) -> BVec4A {
         Vec4::cmpeq(self, o)
+    }
+    #[inline(always)]
+    fn cmpne(self, o: Self) -> BVec4A {
+        Vec4::cmpne(self, o)
     }
     #[inline(always)]
     fn mask_splat(v: bool) -> BVec4A {
@@ -212,6 +225,10 @@ impl<const N: usize> Lanes for Wide<N> {
         Wide([v; N])
     }
     #[inline(always)]
+    fn from_splat4(v: Vec4) -> Self {
+        Wide([v.x; N])
+    }
+    #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self {
         Wide(std::array::from_fn(f))
     }
@@ -270,6 +287,10 @@ impl<const N: usize> Lanes for Wide<N> {
     #[inline(always)]
     fn cmpeq(self, o: Self) -> WideMask<N> {
         test(self, o, |a, b| a == b)
+    }
+    #[inline(always)]
+    fn cmpne(self, o: Self) -> WideMask<N> {
+        test(self, o, |a, b| a != b)
     }
     #[inline(always)]
     fn mask_splat(v: bool) -> WideMask<N> {
@@ -384,11 +405,12 @@ mod tests {
             }
             type Cmp8 = fn(F32x8, F32x8) -> M32x8;
             type Cmp4 = fn(Vec4, Vec4) -> BVec4A;
-            let cmps: [(Cmp8, Cmp4); 4] = [
+            let cmps: [(Cmp8, Cmp4); 5] = [
                 (|a, b| a.cmpgt(b), |a, b| a.cmpgt(b)),
                 (|a, b| a.cmpge(b), |a, b| a.cmpge(b)),
                 (|a, b| a.cmple(b), |a, b| a.cmple(b)),
                 (|a, b| a.cmpeq(b), |a, b| a.cmpeq(b)),
+                (|a, b| a.cmpne(b), |a, b| a.cmpne(b)),
             ];
             let sign8 = F32x8::bitmask(a8.sign_bit());
             let sign4 = Lanes::sign_bit(half(&a, 0)).bitmask()

@@ -112,7 +112,7 @@ impl TileSoa {
 /// [`crate::tracer::closer`] does) and whether the f32 proof settles it (depth at most `cap`).
 #[inline(always)]
 fn list_pass<L: Lanes>(
-    tris: &[TriFromOrigin],
+    tris: &[TriFromOrigin<f32>],
     soa: &mut TileSoa,
     n: usize,
     tmin: f32,
@@ -158,7 +158,7 @@ fn list_pass<L: Lanes>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn list_pass_avx2(
-    tris: &[TriFromOrigin],
+    tris: &[TriFromOrigin<f32>],
     soa: &mut TileSoa,
     n: usize,
     tmin: f32,

@@ -57,7 +57,7 @@ pub struct Scratch {
     /// Slots still to answer.
     pending: Vec<usize>,
     /// The list's triangles prepared for the tile's origin (four rays per test).
-    pub(super) tris: Vec<TriFromOrigin>,
+    pub(super) tris: Vec<TriFromOrigin<f32>>,
     /// The tile's rays as structure-of-arrays (`origin.rs`).
     pub(super) soa: TileSoa,
 }
@@ -90,7 +90,7 @@ impl Scratch {
             + std::mem::size_of::<Stacks>()
             + self.best.capacity() * std::mem::size_of::<Best>()
             + self.pending.capacity() * 8
-            + self.tris.capacity() * std::mem::size_of::<TriFromOrigin>()
+            + self.tris.capacity() * std::mem::size_of::<TriFromOrigin<f32>>()
             + self.soa.bytes()
     }
 }
