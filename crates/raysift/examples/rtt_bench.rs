@@ -172,11 +172,17 @@ fn measure(
             (best_rtt, srtt) = (s.trace_ms, s);
         }
     }
+    // The last run was rtt's: its answers, for comparison with a peer's.
+    let found = if any {
+        occ.iter().filter(|&&o| o).count()
+    } else {
+        hits.prim.iter().filter(|&&p| p != raysift::rays::MISS).count()
+    };
     let n = rays.len().max(1) as f64;
     let c = |k: &str| srtt.work.get(k);
     let traced = c("corner_rays") + c("fallback_rays");
     println!(
-        "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2}), per tile: shaft cells {:.1}, shaft box tests {:.1}",
+        "{label:<24} {} rays | kdtree {best_kd:8.1} ms {:5.2} Mrays/s, {:.2} tri/ray | rtt {best_rtt:8.1} ms {:5.2} Mrays/s, speedup {:.2}x, hits {found} | traced {traced} ({:.1}%: corner {}, fallback {}), from lists {:.1}%, mean list {:.2}, tiles listed {:.1}%, tri/ray {:.2} (lists {:.2}), per tile: shaft cells {:.1}, shaft box tests {:.1}",
         rays.len(),
         n / best_kd / 1e3,
         skd.work.get("ray_tri") as f64 / n,
