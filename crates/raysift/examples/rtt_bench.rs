@@ -176,7 +176,10 @@ fn measure(
     let found = if any {
         occ.iter().filter(|&&o| o).count()
     } else {
-        hits.prim.iter().filter(|&&p| p != raysift::rays::MISS).count()
+        hits.prim
+            .iter()
+            .filter(|&&p| p != raysift::rays::MISS)
+            .count()
     };
     let n = rays.len().max(1) as f64;
     let c = |k: &str| srtt.work.get(k);

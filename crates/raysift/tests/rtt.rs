@@ -1,12 +1,14 @@
 //! The `rtt` tracer's own cases (beyond the conformance suite, which checks it through the
 //! registry in its defaults and presets): tiles straddling silhouettes, tiles whose corners all
-//! miss, antialiased tiles of 2×2 … 6×6 samples, a camera inside the scene, coplanar grids whose
+//! miss, corners hitting one triangle in different leaves, antialiased tiles of 2×2 … 6×6
+//! samples (and overflowing ones, split), a camera inside the scene, coplanar grids whose
 //! triangles lie in split planes, area-light shadow shafts, and the paper's own check (hit ids
 //! identical to the kd-tree baseline's). Every case equals `naive` bit for bit in every
 //! configuration, and the counters show the lists answering the rays they should.
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
+use raysift::accel::kdtree::{BuildConfig, KdTree};
 use raysift::rays::{generate, Camera, Ray, RayBatch, RayLayout};
 use raysift::scene::{procedural, Mesh, Scene};
 use raysift::testkit::{check_tracer, first_difference, Oracle};
@@ -180,6 +182,73 @@ fn coplanar_grids_in_split_planes() {
         };
         check(&scene, &camera(eye, look).rays(40, 32));
     }
+}
+
+/// The kd-tree leaf holding point `p` (below a split plane when on it).
+fn leaf_of(tree: &KdTree, p: Vec3) -> u32 {
+    let mut node = 0u32;
+    loop {
+        let n = tree.nodes[node as usize];
+        if n.is_leaf() {
+            return node;
+        }
+        node = if p[n.axis()] <= n.split() {
+            node + 1
+        } else {
+            n.above()
+        };
+    }
+}
+
+#[test]
+fn corners_hitting_one_triangle_in_different_leaves() {
+    // One large floor triangle under a lattice of small ones: the kd-tree's splits between the
+    // small triangles cut the floor into many leaves, so a tile's four corners hit the same
+    // floor triangle in different leaves (the paper's "different node sequences").
+    let mut positions = vec![
+        Vec3::new(-10.0, 0.0, -10.0),
+        Vec3::new(10.0, 0.0, -10.0),
+        Vec3::new(0.0, 0.0, 10.0),
+    ];
+    let mut indices = vec![[0, 1, 2]];
+    for i in 0..20 {
+        for k in 0..20 {
+            let (x, z) = (-1.0 + 0.1 * i as f32, -1.0 + 0.1 * k as f32);
+            let base = positions.len() as u32;
+            positions.extend([
+                Vec3::new(x, 0.5, z),
+                Vec3::new(x + 0.02, 0.5, z),
+                Vec3::new(x, 0.52, z + 0.02),
+            ]);
+            indices.push([base, base + 1, base + 2]);
+        }
+    }
+    let scene = Scene::from_meshes("posts", vec![Mesh::new("p", positions, indices)]).unwrap();
+    let tree = KdTree::build(scene.triangles(), &BuildConfig::default()).unwrap();
+    let cam = camera(Vec3::new(0.05, 3.0, 0.3), Vec3::new(0.0, 0.0, 0.0));
+    let rays = cam.rays(48, 40);
+    let (c, _) = check(&scene, &rays);
+    assert!(listed(&c, &rays) > 0.5, "{c:?}");
+    // Tiles whose four corners all hit the floor, in more than one leaf.
+    let naive = Oracle::new(&scene, &rays);
+    let (w, mut split_tiles) = (48, 0);
+    for j0 in (0..40).step_by(4) {
+        for i0 in (0..w).step_by(4) {
+            let corners = [(i0, j0), (i0 + 3, j0), (i0 + 3, j0 + 3), (i0, j0 + 3)];
+            let leaves: Vec<u32> = corners
+                .iter()
+                .filter_map(|&(i, j)| {
+                    let r = j * w + i;
+                    (naive.hits.prim[r] == 0)
+                        .then(|| leaf_of(&tree, rays.origin(r) + rays.dir(r) * naive.hits.t[r]))
+                })
+                .collect();
+            if leaves.len() == 4 && leaves.iter().any(|&l| l != leaves[0]) {
+                split_tiles += 1;
+            }
+        }
+    }
+    assert!(split_tiles > 20, "{split_tiles}");
 }
 
 #[test]

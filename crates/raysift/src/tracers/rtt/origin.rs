@@ -228,7 +228,7 @@ impl Ctx<'_> {
             return Origin::NotForIt;
         }
         let (o, tmin) = (rays.origin(rows.first), rays.tmin[rows.first]);
-        if !(tmin >= 0.0) {
+        if tmin.is_nan() || tmin < 0.0 {
             return Origin::NotForIt;
         }
         let soa = &mut s.soa;
