@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | `mod.rs` | [`Config`], counters, [`Rtt`], `impl Tracer`, how a batch is cut into tiles | §3 |
 //! | `tile.rs` | one tile: corner rays, the shaft walk that builds the relevant-triangle list, the per-ray proof, the fallback | §3 |
+//! | `origin.rs` | the vector path of closest-hit tiles from one origin (camera tiles, grids): rays gathered into structure-of-arrays, the shaft fitted in f32 lanes, the list tested 8 rays at a time, overflowing tiles split | §3 |
 //! | [`crate::geom::shaft`] | the shaft (pyramid fitted to a tile's rays, capped) and its conservative box test | §3 ("five tests") |
 //! | [`crate::accel::kdtree`] | the SAH kd-tree and its exactness proof | §2 (the baseline) |
 //! | [`crate::tracers::kdtree`] | the single-ray walk used for corner rays and fallbacks | §2 |
@@ -35,11 +36,23 @@
 //!    every triangle of those leaves whose box it cannot rule out (the paper's five tests per
 //!    triangle: four sides and the cap; here against the triangle's box, see below): the
 //!    relevant-triangle list, sorted and deduplicated.
-//! 4. Every other ray of the tile tests only the list (rays from one origin four at a time,
+//! 4. Every other ray of the tile tests only the list (rays from one origin `L::N` at a time,
 //!    through the list's triangles prepared for that origin: `geom::TriFromOrigin`,
 //!    bit-identical to the shared test). Its answer is *proven* when it found a hit
 //!    no deeper than the cap (for any-hit: any hit), or no hit and its whole segment ends before
 //!    the cap; otherwise the ray is traced through the tree (a "fallback").
+//!
+//! **Closest hits from one origin** (camera tiles, antialiased or not, and grids) take
+//! `origin.rs`'s path: the tile's rays are copied row by row into structure-of-arrays, the
+//! shaft is fitted in f32 lanes (padded by the bound of their rounding, `geom::shaft`), the list
+//! is tested eight rays at a time in code compiled for AVX2 (four elsewhere; `geom::Lanes`), each
+//! lane keeping its best hit in registers, and the depth proof runs in f32 with a margin that
+//! bounds its rounding (a lane it cannot settle gets the f64 test). A tile whose list overflows
+//! is traced as its four quarters, each with its own corners and shaft (down to single pixels,
+//! and not into quarters of four rays or fewer, which would only walk their corners); a tile of
+//! `R` rays may use a list of `max_list · R/16` triangles (at most 16 × `max_list`: a list's
+//! cost and the walks it saves are both per ray). Measured in BENCHMARKS.md (§ RTT, "The vector
+//! path").
 //!
 //! **Why it is exact.** A triangle the shared test can report on a ray inside the shaft has its
 //! box within `BOX_EXIT_SLACK` of the hit point, so the shaft's box test (tolerance 1e-5
@@ -56,18 +69,22 @@
 //! can be hit by inner rays only). So here a tile is *listed* (coherent) when (a) all its rays
 //! share one origin bit for bit (image and grid tiles; segment and line groups need not), with
 //! `tmin >= 0`, (b) the shaft fits (every direction within `acos(0.2)` of the
-//! mean), and (c) the list holds at most `max_list` triangles; a listed tile's rays are then
+//! mean), and (c) the list holds at most [`Config::list_limit`] triangles (`max_list` for a tile
+//! of 16 rays); a listed tile's rays are then
 //! answered from the list where step 4 proves it. Corner rays that hit different triangles or
 //! different leaves do not unlist a tile; inner rays that see past the corners' depth fall back.
 //!
 //! **Counters** (the paper's Table 1): `list_rays / rays` is the share of rays answered without
-//! traversal, `list_len / tiles_listed` the mean list length, `nodes + leaves` the traversal
+//! traversal, `list_len / tiles_listed` the mean list length, `tiles_split` the tiles traced as
+//! quarters, `nodes + leaves` the traversal
 //! steps of corner and fallback rays, `ray_tri + list_tests` the triangle tests. Measured in
 //! BENCHMARKS.md (§ RTT).
 //!
 //! **Memory**: the kd-tree's (8 bytes per node, 4 per reference; [`Rtt::bytes`] is the tree's);
-//! per parallel task a scratch of one tile's slots, the list and its prepared triangles, and
-//! three stacks, about 31 KiB (reported as `peak_bytes`), nothing per ray.
+//! per parallel task a scratch of one tile's slots (and their structure-of-arrays copy), the
+//! list and its prepared triangles (84 bytes each), and three stacks: about 32 KiB for 4×4-pixel
+//! tiles of one sample, about 144 KiB at 6×6 samples, whose lists may be 16 times longer
+//! (reported as `peak_bytes`, bounded in `tests/rtt.rs`), nothing per ray.
 
 mod origin;
 mod tile;
