@@ -1,13 +1,16 @@
-//! Tiles of rays from one origin (camera tiles, grids) for closest hits: the vector path of
+//! Tiles of rays from one origin (camera tiles, grids: closest or any hits): the vector path of
 //! `tile.rs`'s steps 2–4, on the tile's rays gathered into structure-of-arrays.
 //!
-//! Same shaft, same list, same proof as `tile.rs` (so the same answers and counters); what
-//! changes is how the list is tested: `L::N` rays at a time (eight in code compiled for AVX2,
-//! four elsewhere) through [`TriFromOrigin::intersect_lanes`], each lane keeping its best hit in
-//! vector registers, and the depth proof run in the same pass in f32 with a margin that bounds
-//! its rounding (see [`PROOF_MARGIN`]); a lane the f32 proof cannot settle gets the f64 test of
-//! `tile.rs`. Corner rays are gathered last: they shape the shaft, but their answers come from
-//! the tree, so the list pass skips them.
+//! The shaft, list and proof rules of `tile.rs` (so the same answers); what changes is how the
+//! list is tested: `L::N` rays at a time (eight in code compiled for AVX2, four elsewhere)
+//! through [`TriFromOrigin::intersect_lanes`], each lane keeping its best hit in vector
+//! registers (for any-hit queries its first, a group stopping once every lane has one), and the
+//! depth proof run in the same pass in f32 with a margin that bounds its rounding (see
+//! [`PROOF_MARGIN`]); a lane the f32 proof cannot settle gets the f64 test of `tile.rs`. Corner
+//! rays are gathered last: they shape the shaft, but their answers come from the tree, so the
+//! list pass skips them. Any-hit tiles of finite segments (area-light shadow grids) have no
+//! corner rays: their far ends cap the shaft. The shaft is fitted in f32 lanes
+//! ([`Shaft::fit_lanes`]), so its frame may differ from `tile.rs`'s by rounding.
 
 use super::tile::{Ctx, Scratch};
 use super::Counters;
@@ -109,9 +112,10 @@ impl TileSoa {
 
 /// The list pass over slots `0..n` of `soa`, `L::N` at a time: each lane's closest hit among
 /// `tris` (list order is ascending primitive id, so a tie keeps the earlier triangle, as
-/// [`crate::tracer::closer`] does) and whether the f32 proof settles it (depth at most `cap`).
+/// [`crate::tracer::closer`] does; with `ANY`, its first hit, and a group stops once every lane
+/// has one) and whether the f32 proof settles it (depth at most `cap`).
 #[inline(always)]
-fn list_pass<L: Lanes>(
+fn list_pass<L: Lanes, const ANY: bool>(
     tris: &[TriFromOrigin<f32>],
     soa: &mut TileSoa,
     n: usize,
@@ -133,11 +137,18 @@ fn list_pass<L: Lanes>(
         for (j, tri) in tris.iter().enumerate() {
             let h = tri.intersect_lanes(d, tmin, bt);
             if h.mask != 0 {
-                let take = h.hits & (bt.cmpgt(h.t) | zero.cmpgt(bj));
+                let take = if ANY {
+                    h.hits & zero.cmpgt(bj)
+                } else {
+                    h.hits & (bt.cmpgt(h.t) | zero.cmpgt(bj))
+                };
                 bt = L::select(take, h.t, bt);
                 bu = L::select(take, h.u, bu);
                 bv = L::select(take, h.v, bv);
                 bj = L::select(take, L::splat(j as f32), bj);
+                if ANY && L::bitmask(zero.cmpgt(bj)) == 0 {
+                    break;
+                }
             }
         }
         let depth = bt * (L::splat(m[0]) * d[0] + L::splat(m[1]) * d[1] + L::splat(m[2]) * d[2]);
@@ -157,7 +168,7 @@ fn list_pass<L: Lanes>(
 /// The CPU must support AVX2 ([`lanes::width`] is [`Width::Eight`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn list_pass_avx2(
+unsafe fn list_pass_avx2<const ANY: bool>(
     tris: &[TriFromOrigin<f32>],
     soa: &mut TileSoa,
     n: usize,
@@ -165,7 +176,7 @@ unsafe fn list_pass_avx2(
     m: [f32; 3],
     cap: f32,
 ) {
-    list_pass::<F32x8>(tris, soa, n, tmin, m, cap)
+    list_pass::<F32x8, ANY>(tris, soa, n, tmin, m, cap)
 }
 
 /// A tile's rays as runs of consecutive rays: run `r` is `first + r·stride ..` of `len` rays,
@@ -204,15 +215,15 @@ unsafe fn fit_avx2(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Sh
 }
 
 impl Ctx<'_> {
-    /// Traces the tile of rays `rows` (closest hits) whose corners are `corners` on the vector
-    /// path. [`Origin::NotForIt`] (nothing traced) when its rays do not share one origin and one
+    /// Traces the tile of rays `rows` (closest hits, or any hits with `ANY`) whose corners are
+    /// `corners` on the vector path. [`Origin::NotForIt`] (nothing traced) when its rays do not share one origin and one
     /// `tmin >= 0` bit for bit, or it has fewer than four rays. The shaft, the list and the proof
     /// are `tile.rs`'s (the shaft's mean direction may differ by rounding: any direction inside
     /// the rays' cone serves). When the list is too long, the inner rays are walked through the
     /// tree, or, with `split`, left to the caller ([`Origin::Overflow`]: only the corners are
     /// answered), which traces the tile's quarters as tiles of their own.
     #[allow(clippy::too_many_arguments)]
-    pub fn origin_tile(
+    pub fn origin_tile<const ANY: bool>(
         &self,
         rows: Runs,
         corners: [usize; 4],
@@ -250,6 +261,10 @@ impl Ctx<'_> {
         if !same {
             return Origin::NotForIt;
         }
+        // Any-hit tiles of finite segments need no corners: the segments' far ends cap the
+        // shaft, and every answer is proven.
+        let far = soa.tmax.iter().fold(0.0f32, |a, &t| a.max(t));
+        let walk_corners = !ANY || far == f32::INFINITY;
         // The distinct corners, moved to the end (slots beyond `inner`), largest slot first so
         // that each swap takes an inner ray.
         let slot = |i: usize| {
@@ -261,7 +276,7 @@ impl Ctx<'_> {
         };
         let mut ids = [0usize; 4];
         let mut nc = 0;
-        for &i in &corners {
+        for &i in corners.iter().filter(|_| walk_corners) {
             if !ids[..nc].contains(&i) {
                 ids[nc] = i;
                 nc += 1;
@@ -291,14 +306,13 @@ impl Ctx<'_> {
             for k in 0..all {
                 let i = s.soa.ray[k];
                 c.fallback_rays += 1;
-                let best = self.walk::<false>(i, start, s, c, cost);
+                let best = self.walk::<ANY>(i, start, s, c, cost);
                 emit(i, best);
             }
             return Origin::Traced;
         };
         // Capped at the segments' far ends, and at the corners' closest hits grown by
         // `cap_growth`.
-        let far = soa.tmax[..all].iter().fold(0.0f32, |a, &t| a.max(t));
         let mut cap = if far == f32::INFINITY {
             f64::INFINITY
         } else {
@@ -306,7 +320,11 @@ impl Ctx<'_> {
                 h.max(shaft.depth(Vec3::new(soa.dx[k], soa.dy[k], soa.dz[k]), soa.tmax[k]))
             })
         };
-        let hits = self.walk4(&ids[..nc], start, s, c, cost);
+        let hits = if nc > 0 {
+            self.walk4(&ids[..nc], start, s, c, cost)
+        } else {
+            [(f32::INFINITY, MISS, 0.0, 0.0); 4]
+        };
         let mut deepest = 0.0f64;
         for (&i, &best) in ids[..nc].iter().zip(&hits) {
             c.corner_rays += 1;
@@ -317,7 +335,9 @@ impl Ctx<'_> {
             });
             emit(i, best);
         }
-        cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
+        if nc > 0 {
+            cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
+        }
         shaft.set_cap(cap);
         let before = (c.shaft_nodes, c.shaft_boxes);
         if inner == 0 {
@@ -331,7 +351,7 @@ impl Ctx<'_> {
             for k in 0..inner {
                 let i = s.soa.ray[k];
                 c.fallback_rays += 1;
-                let best = self.walk::<false>(i, start, s, c, cost);
+                let best = self.walk::<ANY>(i, start, s, c, cost);
                 emit(i, best);
             }
             return Origin::Traced;
@@ -340,9 +360,6 @@ impl Ctx<'_> {
         let len = s.list.len() as u64;
         c.list_len += len;
         let shared = (c.shaft_nodes - before.0, c.shaft_boxes - before.1);
-        if inner == 0 {
-            return Origin::Traced;
-        }
         let soup = self.soup;
         s.tris.clear();
         s.tris.extend(s.list.iter().map(|&p| {
@@ -361,17 +378,17 @@ impl Ctx<'_> {
             Width::Eight => {
                 // SAFETY: `list_pass_avx2` needs AVX2; `width()` is `Eight` only on CPUs that
                 // have it.
-                unsafe { list_pass_avx2(&s.tris, soa, inner, tmin, m, cap32) };
+                unsafe { list_pass_avx2::<ANY>(&s.tris, soa, inner, tmin, m, cap32) };
                 8
             }
             Width::Four => {
-                list_pass::<Vec4>(&s.tris, soa, inner, tmin, m, cap32);
+                list_pass::<Vec4, ANY>(&s.tris, soa, inner, tmin, m, cap32);
                 4
             }
         };
         #[cfg(not(target_arch = "x86_64"))]
         let w = {
-            list_pass::<Vec4>(&s.tris, soa, inner, tmin, m, cap32);
+            list_pass::<Vec4, ANY>(&s.tris, soa, inner, tmin, m, cap32);
             4
         };
         for k in 0..inner {
@@ -387,14 +404,15 @@ impl Ctx<'_> {
             } else {
                 (soa.t[k], s.list[j as usize], soa.u[k], soa.v[k])
             };
-            // The f32 proof, or `tile.rs`'s f64 one for lanes it cannot settle.
-            let settled = soa.proven[k / w] >> (k % w) & 1 != 0;
+            // Any hit answers an any-hit query; else the f32 proof, or `tile.rs`'s f64 one for
+            // lanes it cannot settle.
+            let settled = (ANY && j >= 0.0) || soa.proven[k / w] >> (k % w) & 1 != 0;
             if settled || shaft.depth(rays.dir(i), best.0) <= cap {
                 c.list_rays += 1;
                 emit(i, best);
             } else {
                 c.fallback_rays += 1;
-                let best = self.walk::<false>(i, start, s, c, cost);
+                let best = self.walk::<ANY>(i, start, s, c, cost);
                 emit(i, best);
             }
         }

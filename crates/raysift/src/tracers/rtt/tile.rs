@@ -257,11 +257,11 @@ impl Ctx<'_> {
             len: tw * ns,
             count: th,
         };
-        if !ANY {
+        {
             // Quarters of more than four rays have inner rays to answer from lists; smaller
             // ones would only walk their corners (measured: no faster than single walks).
             let split = tw * th > 1 && tw.div_ceil(2) * th.div_ceil(2) * ns > 4;
-            match self.origin_tile(rows, corners, split, start, s, c, cost, emit) {
+            match self.origin_tile::<ANY>(rows, corners, split, start, s, c, cost, emit) {
                 Origin::Traced => return,
                 Origin::Overflow => {
                     // The quarters (halves of a one-pixel-wide tile), each a tile of its own.
