@@ -12,7 +12,7 @@
 //! corner rays: their far ends cap the shaft. The shaft is fitted in f32 lanes
 //! ([`Shaft::fit_lanes`]), so its frame may differ from `tile.rs`'s by rounding.
 
-use super::tile::{Ctx, Scratch};
+use super::tile::{distinct, Ctx, Scratch};
 use super::Counters;
 #[cfg(target_arch = "x86_64")]
 use crate::geom::lanes::F32x8;
@@ -274,14 +274,11 @@ impl Ctx<'_> {
             );
             r * rows.len + k
         };
-        let mut ids = [0usize; 4];
-        let mut nc = 0;
-        for &i in corners.iter().filter(|_| walk_corners) {
-            if !ids[..nc].contains(&i) {
-                ids[nc] = i;
-                nc += 1;
-            }
-        }
+        let (mut ids, nc) = if walk_corners {
+            distinct(corners)
+        } else {
+            ([0; 4], 0)
+        };
         ids[..nc].sort_unstable_by(|a, b| b.cmp(a));
         let all = soa.ray.len();
         let mut inner = all;
@@ -303,12 +300,7 @@ impl Ctx<'_> {
             );
         }
         let Some(mut shaft) = fit(o.as_dvec3(), soa) else {
-            for k in 0..all {
-                let i = s.soa.ray[k];
-                c.fallback_rays += 1;
-                let best = self.walk::<ANY>(i, start, s, c, cost);
-                emit(i, best);
-            }
+            self.walk_each::<ANY>(|s, k| s.soa.ray[k], all, start, s, c, cost, emit);
             return Origin::Traced;
         };
         // Capped at the segments' far ends, and at the corners' closest hits grown by
@@ -320,23 +312,8 @@ impl Ctx<'_> {
                 h.max(shaft.depth(Vec3::new(soa.dx[k], soa.dy[k], soa.dz[k]), soa.tmax[k]))
             })
         };
-        let hits = if nc > 0 {
-            self.walk4(&ids[..nc], start, s, c, cost)
-        } else {
-            [(f32::INFINITY, MISS, 0.0, 0.0); 4]
-        };
-        let mut deepest = 0.0f64;
-        for (&i, &best) in ids[..nc].iter().zip(&hits) {
-            c.corner_rays += 1;
-            deepest = deepest.max(if best.1 == MISS {
-                f64::INFINITY
-            } else {
-                shaft.depth(rays.dir(i), best.0)
-            });
-            emit(i, best);
-        }
         if nc > 0 {
-            cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
+            cap = cap.min(self.corner_cap(&ids[..nc], &shaft, start, s, c, cost, emit));
         }
         shaft.set_cap(cap);
         let before = (c.shaft_nodes, c.shaft_boxes);
@@ -348,12 +325,7 @@ impl Ctx<'_> {
                 c.tiles_split += 1;
                 return Origin::Overflow;
             }
-            for k in 0..inner {
-                let i = s.soa.ray[k];
-                c.fallback_rays += 1;
-                let best = self.walk::<ANY>(i, start, s, c, cost);
-                emit(i, best);
-            }
+            self.walk_each::<ANY>(|s, k| s.soa.ray[k], inner, start, s, c, cost, emit);
             return Origin::Traced;
         }
         c.tiles_listed += 1;

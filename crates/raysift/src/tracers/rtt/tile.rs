@@ -95,6 +95,19 @@ impl Scratch {
     }
 }
 
+/// The distinct rays of `corners` (a one-pixel tile's corners may coincide) and their count.
+pub(super) fn distinct(corners: [usize; 4]) -> ([usize; 4], usize) {
+    let mut ids = [0usize; 4];
+    let mut n = 0;
+    for i in corners {
+        if !ids[..n].contains(&i) {
+            ids[n] = i;
+            n += 1;
+        }
+    }
+    (ids, n)
+}
+
 /// Duplicate references a list may hold before it is deduplicated and checked.
 const LIST_OVERRUN: usize = 16;
 
@@ -445,29 +458,12 @@ impl Ctx<'_> {
                 h.max(shaft.depth_from(rays.origin(i), rays.dir(i), rays.tmax[i]))
             });
             if !ANY || cap == f64::INFINITY {
-                // The distinct corners, walked as one 4-ray packet (the paper's SIMD corners).
-                let mut ids = [0usize; 4];
-                let mut n = 0;
-                for &i in &corners {
-                    if !ids[..n].contains(&i) {
-                        ids[n] = i;
-                        n += 1;
-                    }
-                }
-                let hits = self.walk4(&ids[..n], start, s, c, cost);
-                let mut deepest = 0.0f64;
-                for (&i, &best) in ids[..n].iter().zip(&hits) {
-                    c.corner_rays += 1;
-                    deepest = deepest.max(if best.1 == MISS {
-                        f64::INFINITY
-                    } else {
-                        shaft.depth_from(rays.origin(i), rays.dir(i), best.0)
-                    });
+                let (ids, n) = distinct(corners);
+                cap = cap.min(self.corner_cap(&ids[..n], &shaft, start, s, c, cost, emit));
+                for &i in &ids[..n] {
                     let slot = s.idx.iter().position(|&x| x == i).expect("corner in tile");
                     s.done[slot] = true;
-                    emit(i, best);
                 }
-                cap = cap.min(deepest * (1.0 + self.cfg.cap_growth));
             }
         }
         shaft.set_cap(cap);
@@ -576,6 +572,55 @@ impl Ctx<'_> {
             for (k, &n) in group.iter().enumerate() {
                 best[n] = b[k];
             }
+        }
+    }
+
+    /// The corners `ids` (one to four) walked as one 4-ray packet (the paper's SIMD corners),
+    /// their answers emitted; returns the cap they set: the depth of the deepest closest hit
+    /// grown by `cap_growth` (infinite when one misses).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn corner_cap(
+        &self,
+        ids: &[usize],
+        shaft: &Shaft,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) -> f64 {
+        let rays = self.rays;
+        let hits = self.walk4(ids, start, s, c, cost);
+        let mut deepest = 0.0f64;
+        for (&i, &best) in ids.iter().zip(&hits) {
+            c.corner_rays += 1;
+            deepest = deepest.max(if best.1 == MISS {
+                f64::INFINITY
+            } else {
+                shaft.depth_from(rays.origin(i), rays.dir(i), best.0)
+            });
+            emit(i, best);
+        }
+        deepest * (1.0 + self.cfg.cap_growth)
+    }
+
+    /// Rays `rays` walked through the tree one by one, as fallbacks.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn walk_each<const ANY: bool>(
+        &self,
+        rays: impl Fn(&Scratch, usize) -> usize,
+        n: usize,
+        start: usize,
+        s: &mut Scratch,
+        c: &mut Counters,
+        cost: &mut Option<CostMut<'_>>,
+        emit: &mut impl FnMut(usize, Best),
+    ) {
+        for k in 0..n {
+            let i = rays(s, k);
+            c.fallback_rays += 1;
+            let best = self.walk::<ANY>(i, start, s, c, cost);
+            emit(i, best);
         }
     }
 
