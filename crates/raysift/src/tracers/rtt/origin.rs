@@ -216,12 +216,13 @@ unsafe fn fit_avx2(apex: DVec3, dx: &[f32], dy: &[f32], dz: &[f32]) -> Option<Sh
 
 impl Ctx<'_> {
     /// Traces the tile of rays `rows` (closest hits, or any hits with `ANY`) whose corners are
-    /// `corners` on the vector path. [`Origin::NotForIt`] (nothing traced) when its rays do not share one origin and one
-    /// `tmin >= 0` bit for bit, or it has fewer than four rays. The shaft, the list and the proof
-    /// are `tile.rs`'s (the shaft's mean direction may differ by rounding: any direction inside
-    /// the rays' cone serves). When the list is too long, the inner rays are walked through the
-    /// tree, or, with `split`, left to the caller ([`Origin::Overflow`]: only the corners are
-    /// answered), which traces the tile's quarters as tiles of their own.
+    /// `corners` on the vector path. [`Origin::NotForIt`] (nothing traced) when its rays do not
+    /// share one origin and one `tmin >= 0` bit for bit, or it has fewer than four rays. The
+    /// shaft, the list and the proof are `tile.rs`'s (the shaft's mean direction may differ by
+    /// rounding: any direction inside the rays' cone serves). When the list is too long, the
+    /// inner rays are walked through the tree, or, with `split`, left to the caller
+    /// ([`Origin::Overflow`]: only the corners are answered), which traces the tile's quarters as
+    /// tiles of their own.
     #[allow(clippy::too_many_arguments)]
     pub fn origin_tile<const ANY: bool>(
         &self,
@@ -247,7 +248,11 @@ impl Ctx<'_> {
         let mut same = true;
         for r in 0..rows.count {
             let run = rows.first + r * rows.stride..rows.first + r * rows.stride + rows.len;
-            let all_eq = |v: &[f32], x: f32| v.iter().fold(true, |a, &y| a & (y == x));
+            // Bit for bit: `-0.0` and `0.0` would give the triangle test different zeros.
+            let all_eq = |v: &[f32], x: f32| {
+                v.iter()
+                    .fold(true, |a, &y| a & (y.to_bits() == x.to_bits()))
+            };
             same &= all_eq(&rays.ox[run.clone()], o.x)
                 & all_eq(&rays.oy[run.clone()], o.y)
                 & all_eq(&rays.oz[run.clone()], o.z)

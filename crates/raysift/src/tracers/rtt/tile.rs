@@ -390,7 +390,11 @@ impl Ctx<'_> {
         let o = rays.origin(s.idx[0]);
         // One origin bit for bit, and t >= 0 (the shaft bounds rays ahead of the apex only).
         let same = |i: usize| {
-            rays.ox[i] == o.x && rays.oy[i] == o.y && rays.oz[i] == o.z && rays.tmin[i] >= 0.0
+            let bits = |a: f32, b: f32| a.to_bits() == b.to_bits();
+            bits(rays.ox[i], o.x)
+                && bits(rays.oy[i], o.y)
+                && bits(rays.oz[i], o.z)
+                && rays.tmin[i] >= 0.0
         };
         if !s.idx.iter().all(|&i| same(i)) {
             return None;
