@@ -16,6 +16,7 @@ the tables give medians over rounds. Prints Markdown tables (and the commands) t
 
 Usage: python3 bench/renderers.py [--raysift target/release/raysift] [--shared ../shared]
        [--rounds 3] [--parts table4,ir,brainstem,embree] [--peer bench/target/release/embree-peer]
+       [--embree-work 0,1,2,3] [--tracers bvh,rtrps]
 """
 
 import argparse
@@ -158,6 +159,10 @@ def embree(a):
              [("embree low packet 16", 16, "low"), ("embree packet 16", 16, "medium")])]
     threads = str(os.cpu_count() or 1)
     for k, (name, scene, args, tracers, embrees) in enumerate(work):
+        if a.embree_work is not None and k not in a.embree_work:
+            continue
+        if a.tracers:
+            tracers = [t for t in tracers if t in a.tracers]
         d = f"/tmp/renderers-embree-{k}"
         base = [a.raysift, "render", scene] + args + ["--json", "--quiet", "--out",
                                                       f"/tmp/renderers-embree-{k}.png"]
@@ -261,6 +266,11 @@ def main():
     ap.add_argument("--shared", default=os.path.join(ROOT, "..", "shared"))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--parts", default="table4,ir,brainstem,embree")
+    ap.add_argument("--embree-work", type=lambda v: [int(x) for x in v.split(",")],
+                    help="embree part: only these workloads (0 Table 4, 1 Cornell IR, "
+                         "2 Sponza IR, 3 BrainStem)")
+    ap.add_argument("--tracers", type=lambda v: v.split(","),
+                    help="embree part: only these raysift tracers")
     ap.add_argument("--peer", default=os.path.join(ROOT, "bench", "target", "release",
                                                    "embree-peer"))
     a = ap.parse_args()

@@ -457,6 +457,12 @@ fn crossover(spec: &str, origins: usize) {
         ("rtrps", "rtrps", vec![]),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
+        ("rtrps moller", "rtrps", opts(&[("tri_test", "moller")])),
+        (
+            "rtrps common origin",
+            "rtrps",
+            opts(&[("tri_test", "origin")]),
+        ),
     ];
     let mut live: Vec<_> = contenders
         .iter()
@@ -470,8 +476,8 @@ fn crossover(spec: &str, origins: usize) {
         scene.len(),
         rayon::current_num_threads()
     );
-    println!("| side | rays | planes ns/ray | random ns/ray | bvh ns/ray | planes / random | plane tests/ray | spheres/ray (planes) | tri tests/ray (planes) | sphere tests/ray (random) | tri tests/ray (random) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| side | rays | planes ns/ray | random ns/ray | bvh ns/ray | planes / random | plane tests/ray | spheres/ray (planes) | tri tests/ray (planes) | sphere tests/ray (random) | tri tests/ray (random) | planes, Möller ns/ray | planes, common origin ns/ray | common origin / Möller |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for side in [1, 2, 4, 8, 16, 32] {
         let (sh, _) = shadow_and_bounce(&scene, origins, side);
         let mut times = vec![Vec::new(); live.len()];
@@ -494,7 +500,7 @@ fn crossover(spec: &str, origins: usize) {
         let ns = |k: usize| median(times[k].clone()) * 1e6 / n;
         let per = |k: usize, c: &str| work[k].get(c) as f64 / n;
         println!(
-            "| {side} | {} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} |",
+            "| {side} | {} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} | {:.0} | {:.0} | {:.2} |",
             sh.len(),
             ns(0),
             ns(1),
@@ -505,6 +511,9 @@ fn crossover(spec: &str, origins: usize) {
             per(0, "tri_tests"),
             per(1, "ray_sphere"),
             per(1, "tri_tests"),
+            ns(3),
+            ns(4),
+            ns(4) / ns(3),
         );
     }
 }

@@ -151,6 +151,69 @@ fn grid_origin_inside_spheres() {
     }
 }
 
+/// The triangle-test forms (`tri_test`: Möller one ray at a time, the common-origin form in
+/// lanes, and the box check) on what tells them apart: duplicated triangles (equal `t`: the
+/// smaller id must win, whatever order the leaves come in), a coplanar overlapping layer, rays
+/// of one group with different `tmin` (a lane each) and `tmax` ending on the wall, groups of
+/// 1–9 columns (partial lane vectors, padded rows), and origins `0.0` against `-0.0` (not one
+/// origin bit for bit: traced as random rays). Every preset runs too (`check`).
+#[test]
+fn triangle_test_forms_on_ties_tmin_per_ray_and_signed_zero_origins() {
+    let mut tris = Vec::new();
+    for x in -4..4 {
+        for y in -4..4 {
+            let (x, y) = (x as f32 * 0.5, y as f32 * 0.5);
+            let t = [
+                Vec3::new(x, y, 3.0),
+                Vec3::new(x + 0.5, y, 3.0),
+                Vec3::new(x, y + 0.5, 3.0),
+            ];
+            tris.push(t);
+            tris.push(t); // duplicate: ties in t
+            tris.push([t[1], t[0], t[2]]); // same plane, other winding
+            tris.push([
+                Vec3::new(x + 0.25, y, 3.0),
+                Vec3::new(x + 0.75, y + 0.25, 3.0),
+                Vec3::new(x + 0.25, y + 0.5, 3.0),
+            ]);
+        }
+    }
+    let scene = scene_of("ties", &tris);
+    for side in [1usize, 3, 8, 9] {
+        let origins = [
+            Vec3::new(0.1, 0.2, 0.0),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(-0.0, 0.0, 0.0),
+            Vec3::new(-0.3, 0.05, 1.0),
+        ];
+        let mut b = grids(&origins, Vec3::Z, side, 0.5);
+        for k in 0..b.len() {
+            match k % 5 {
+                1 => b.tmin[k] = 0.5,
+                2 => b.tmin[k] = 4.0,           // past the wall: no hit
+                3 => b.tmax[k] = 3.0 / b.dz[k], // ends on the wall
+                _ => {}
+            }
+        }
+        // The second and third origins differ only in the sign of a zero: each group has one.
+        for k in 0..side * side {
+            b.ox[2 * side * side + k] = if k % 2 == 0 { -0.0 } else { 0.0 };
+        }
+        check(&scene, &b);
+        let opts = [
+            [("tri_test", "moller"), ("box_check", "false")],
+            [("tri_test", "origin"), ("box_check", "false")],
+            [("tri_test", "origin"), ("box_check", "true")],
+        ];
+        let results: Vec<_> = opts.iter().map(|o| closest_with(&scene, &b, o).0).collect();
+        for r in &results[1..] {
+            assert_eq!(r.prim, results[0].prim, "side {side}");
+            assert_eq!(r.t, results[0].t, "side {side}");
+        }
+        assert!(results[0].prim.iter().any(|&p| p != u32::MAX));
+    }
+}
+
 /// Packets of one ray: `OriginGrids { side: 1 }` and a 1×N image.
 #[test]
 fn packets_of_one_ray() {

@@ -327,7 +327,11 @@ pub fn width() -> Width {
         static W: std::sync::OnceLock<Width> = std::sync::OnceLock::new();
         *W.get_or_init(|| {
             let forced4 = std::env::var("RAYSIFT_LANES").is_ok_and(|v| v == "4");
-            if !forced4 && std::arch::is_x86_feature_detected!("avx2") {
+            // Every AVX2 CPU has POPCNT too; checked as well, for the lane-mask counts.
+            if !forced4
+                && std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("popcnt")
+            {
                 Width::Eight
             } else {
                 Width::Four

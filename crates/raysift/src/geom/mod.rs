@@ -32,7 +32,7 @@ pub use shapes::{Cone, Plane, Sphere};
 pub use slab::{BoxPair, SlabRay};
 pub use sphere_plane::PlaneFan;
 pub use triangle::{hit_reach_ceil, hit_reach_floor, intersect_triangle, TriHit};
-pub use triangle4::{intersect_triangle4, Hit4, HitLanes, Splat, Tri4, TriFromOrigin};
+pub use triangle4::{intersect_triangle4, slab_lanes, Hit4, HitLanes, Splat, Tri4, TriFromOrigin};
 pub use tribox::{tri_box_edge_axes, tri_box_overlap};
 
 /// `1 + 3 * 2^-24`-style slack used to make box tests conservative against the rounding of the

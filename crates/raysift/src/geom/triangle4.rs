@@ -282,6 +282,20 @@ impl<S: Splat> TriFromOrigin<S> {
     /// [`Self::new`].
     #[inline(always)]
     pub fn intersect_lanes<L: Lanes>(&self, d: [L; 3], tmin: f32, tmax: L) -> HitLanes<L> {
+        let low = L::splat(tmin - self.beyond);
+        self.lanes_from(d, L::splat(tmin), low, tmax)
+    }
+
+    /// [`Self::intersect_lanes`] with a `tmin` per lane (rays that share an origin but not
+    /// their `tmin`): the same operations lane by lane, so the same bits.
+    #[inline(always)]
+    pub fn intersect_lanes_each<L: Lanes>(&self, d: [L; 3], tmin: L, tmax: L) -> HitLanes<L> {
+        self.lanes_from(d, tmin, tmin - L::splat(self.beyond), tmax)
+    }
+
+    /// The lane test, given `tmin` and `low = tmin − beyond` per lane.
+    #[inline(always)]
+    fn lanes_from<L: Lanes>(&self, d: [L; 3], tmin: L, low: L, tmax: L) -> HitLanes<L> {
         let splat = |v: [S; 3]| v.map(S::lanes::<L>);
         let p = cross(d, splat(self.e2));
         let det = dot(splat(self.e1), p);
@@ -289,8 +303,7 @@ impl<S: Splat> TriFromOrigin<S> {
         let u = dot(splat(self.s), p) * inv_det;
         let v = dot(d, splat(self.q)) * inv_det;
         let t = self.tq.lanes::<L>() * inv_det;
-        let b = self.beyond;
-        let range = t.cmple(tmax + L::splat(b)) & t.cmpge(L::splat(tmin - b));
+        let range = t.cmple(tmax + L::splat(self.beyond)) & t.cmpge(low);
         let mut hits = accept(det, u, v) & range;
         let mut mask = L::bitmask(hits);
         let mut t_out = t;
@@ -318,30 +331,47 @@ impl<S: Splat> TriFromOrigin<S> {
     /// leaves (BENCHMARKS.md, "The exact contract"). Returns the gated distances and the lanes
     /// that pass (callers keep only lanes that passed the barycentric tests too).
     #[inline(always)]
-    fn box_gate_lanes<L: Lanes>(&self, d: [L; 3], t: L, tmin: f32, tmax: L) -> (L, L::Mask) {
-        let mut enter = L::splat(f32::NEG_INFINITY);
-        let mut exit = L::splat(f32::INFINITY);
-        let slack = L::splat(super::BOX_EXIT_SLACK);
-        for (k, &dk) in d.iter().enumerate() {
-            let inv = L::splat(1.0) / dk;
-            let neg = dk.sign_bit();
-            let (lo, hi) = (self.lo_off[k].lanes::<L>(), self.hi_off[k].lanes::<L>());
-            let near = L::select(neg, hi, lo) * inv;
-            let far = L::select(neg, lo, hi) * inv * slack;
-            enter = L::select(near.cmpgt(enter), near, enter);
-            exit = L::select(exit.cmpgt(far), far, exit);
-        }
-        let enter = enter - enter.abs() * L::splat(super::slab::BOX_ENTRY_SLACK);
+    fn box_gate_lanes<L: Lanes>(&self, d: [L; 3], t: L, tmin: L, tmax: L) -> (L, L::Mask) {
+        let inv = d.map(|dk| L::splat(1.0) / dk);
+        let (enter, exit) = slab_lanes(
+            d,
+            inv,
+            self.lo_off.map(S::lanes::<L>),
+            self.hi_off.map(S::lanes::<L>),
+        );
         let nonempty = enter.cmple(exit);
         let inside = t.cmpge(enter) & t.cmple(exit);
         let moved = L::select(enter.cmpgt(t), enter, exit);
         let dmax = d[0].abs().max(d[1].abs()).max(d[2].abs());
         let near_enough = ((t - moved).abs() * dmax).cmple(L::splat(self.reach));
         let gated = L::select(inside, t, moved);
-        let ok =
-            nonempty & (inside | near_enough) & gated.cmpge(L::splat(tmin)) & gated.cmple(tmax);
+        let ok = nonempty & (inside | near_enough) & gated.cmpge(tmin) & gated.cmple(tmax);
         (gated, ok)
     }
+}
+
+/// The shared slab interval `(enter, exit)` of `L::N` rays from one origin with a box given
+/// less that origin (`lo_off = lo − origin`, `hi_off = hi − origin`), `inv = 1 / d` per lane:
+/// the operations and order of [`SlabRay::interval`](super::SlabRay::interval) (near plane by
+/// the direction's sign bit, a NaN slab distance never moving the interval, the exit widened and
+/// the entry lowered by the shared slacks). The box gate computes its interval here, so a hit
+/// a triangle test reports on a lane lies in `[enter, exit]` of every box containing the
+/// triangle's (the slab test is monotone in the box): a lane with `enter > exit`,
+/// `enter > tmax` or `exit < tmin` for such a box has no hit there (RTRPS's per-ray check).
+#[inline(always)]
+pub fn slab_lanes<L: Lanes>(d: [L; 3], inv: [L; 3], lo_off: [L; 3], hi_off: [L; 3]) -> (L, L) {
+    let mut enter = L::splat(f32::NEG_INFINITY);
+    let mut exit = L::splat(f32::INFINITY);
+    let slack = L::splat(super::BOX_EXIT_SLACK);
+    for k in 0..3 {
+        let neg = d[k].sign_bit();
+        let near = L::select(neg, hi_off[k], lo_off[k]) * inv[k];
+        let far = L::select(neg, lo_off[k], hi_off[k]) * inv[k] * slack;
+        enter = L::select(near.cmpgt(enter), near, enter);
+        exit = L::select(exit.cmpgt(far), far, exit);
+    }
+    let enter = enter - enter.abs() * L::splat(super::slab::BOX_ENTRY_SLACK);
+    (enter, exit)
 }
 
 #[cfg(test)]
@@ -487,11 +517,28 @@ mod tests {
                 u: std::array::from_fn(|l| h8.u.0[4 * half + l]),
                 v: std::array::from_fn(|l| h8.v.0[4 * half + l]),
             };
+            // A `tmin` per lane (rays from one origin that do not share it), eight wide.
+            let tmins: [f32; 4] =
+                std::array::from_fn(|l| if (n + l) % 2 == 0 { tmin } else { r(0.5).abs() });
+            let he = tri.intersect_lanes_each(
+                d8,
+                F32x8::from_fn(|l| tmins[at8(l)]),
+                F32x8::from_fn(|l| tmax[at8(l)]),
+            );
+            let he = |half: usize| Hit4 {
+                mask: he.mask >> (4 * half) & 15,
+                t: std::array::from_fn(|l| he.t.0[4 * half + l]),
+                u: std::array::from_fn(|l| he.u.0[4 * half + l]),
+                v: std::array::from_fn(|l| he.v.0[4 * half + l]),
+            };
             for l in 0..4 {
                 let s = intersect_triangle(o, dirs[l], a, b, c, tmin, tmax[l]);
                 same_lane(s, &h, l, n, &mut checked);
                 same_lane(s, &h8(0), l, n, &mut checked);
                 same_lane(s, &h8(1), 3 - l, n, &mut checked);
+                let s = intersect_triangle(o, dirs[l], a, b, c, tmins[l], tmax[l]);
+                same_lane(s, &he(0), l, n, &mut checked);
+                same_lane(s, &he(1), 3 - l, n, &mut checked);
             }
         }
         assert!(checked.0 > 20_000 && checked.1 > 20_000, "{checked:?}");

@@ -3,14 +3,17 @@
 //! planes its parent hit, and the rays reproduced at leaves (a hit row × a hit column), each
 //! tested against the leaf's triangles with the shared triangle test.
 
-use super::{random, Config, Counts};
+use super::{random, Config, Counts, TriTest};
 use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
-use crate::geom::intersect_triangle;
+#[cfg(target_arch = "x86_64")]
+use crate::geom::lanes::F32x8;
+use crate::geom::lanes::{self, Lanes, Width};
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
+use crate::geom::{intersect_triangle, slab_lanes, TriFromOrigin};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut, HitsMut};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
 
 /// A group: rays `base + i·stride + j` for rows `i < rows` and columns `j < cols`, one origin.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,11 +97,33 @@ impl Frame {
 
 /// Buffers reused by every group of a chunk.
 pub struct Scratch {
+    /// Unit directions in the grid frame, row-major (`i·cols + j`).
     g: Vec<Vec3>,
+    /// The group's rays as structure-of-arrays, row `i` at `i·rs ..`, padded to whole vectors
+    /// (`rs` is `cols` rounded up to [`MAX_LANES`]; pad slots repeat the row's first ray and
+    /// are never in a mask): raw directions (for the exact test), `tmin`, `tmax`, grid-frame
+    /// unit directions (for the sphere check), reciprocal directions (for the box check, as
+    /// the shared slab test computes them), and closest hits so far.
+    rs: usize,
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    dz: Vec<f32>,
+    tmin: Vec<f32>,
+    tmax: Vec<f32>,
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+    gz: Vec<f32>,
+    ix: Vec<f32>,
+    iy: Vec<f32>,
+    iz: Vec<f32>,
     bt: Vec<f32>,
     bp: Vec<u32>,
     bu: Vec<f32>,
     bv: Vec<f32>,
+    /// Smallest `|d|∞` of the group's rays (the common-origin test's pre-test bound).
+    dlow: f32,
+    /// The current leaf's triangles prepared for the group's origin (built on first use).
+    tris: Vec<TriFromOrigin<f32>>,
     done: [u64; MAX_FAN],
     rows: PlaneFan,
     cols: PlaneFan,
@@ -112,10 +137,24 @@ impl Scratch {
     pub fn new() -> Self {
         Self {
             g: Vec::new(),
+            rs: 0,
+            dx: Vec::new(),
+            dy: Vec::new(),
+            dz: Vec::new(),
+            tmin: Vec::new(),
+            tmax: Vec::new(),
+            gx: Vec::new(),
+            gy: Vec::new(),
+            gz: Vec::new(),
+            ix: Vec::new(),
+            iy: Vec::new(),
+            iz: Vec::new(),
             bt: Vec::new(),
             bp: Vec::new(),
             bu: Vec::new(),
             bv: Vec::new(),
+            dlow: 0.0,
+            tris: Vec::new(),
             done: [0; MAX_FAN],
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
@@ -125,12 +164,73 @@ impl Scratch {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
+        let f = [
+            &self.dx, &self.dy, &self.dz, &self.tmin, &self.tmax, &self.gx, &self.gy, &self.gz,
+            &self.ix, &self.iy, &self.iz, &self.bt, &self.bu, &self.bv,
+        ];
         self.g.capacity() * 12
-            + (self.bt.capacity() + self.bp.capacity() + self.bu.capacity() + self.bv.capacity())
-                * 4
+            + f.iter().map(|v| v.capacity() * 4).sum::<usize>()
+            + self.bp.capacity() * 4
+            + self.tris.capacity() * std::mem::size_of::<TriFromOrigin<f32>>()
             + std::mem::size_of::<Self>()
     }
+
+    /// The structure-of-arrays of group `g` (after [`setup`]: `self.g` holds its grid-frame
+    /// directions), closest-hit slots reset when `closest`.
+    fn load(&mut self, rays: &RayBatch, g: GroupSpec, closest: bool) {
+        let rs = g.cols.next_multiple_of(MAX_LANES);
+        self.rs = rs;
+        let n = g.rows * rs;
+        for v in [
+            &mut self.dx,
+            &mut self.dy,
+            &mut self.dz,
+            &mut self.tmin,
+            &mut self.tmax,
+            &mut self.gx,
+            &mut self.gy,
+            &mut self.gz,
+            &mut self.ix,
+            &mut self.iy,
+            &mut self.iz,
+        ] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        let mut dlow = f32::INFINITY;
+        for i in 0..g.rows {
+            for k in 0..rs {
+                // Pad slots repeat the row's first ray.
+                let j = if k < g.cols { k } else { 0 };
+                let (r, at, u) = (g.ray(i, j), i * rs + k, self.g[i * g.cols + j]);
+                let d = rays.dir(r);
+                dlow = dlow.min(d.abs().max_element());
+                (self.dx[at], self.dy[at], self.dz[at]) = (d.x, d.y, d.z);
+                (self.tmin[at], self.tmax[at]) = (rays.tmin[r], rays.tmax[r]);
+                (self.gx[at], self.gy[at], self.gz[at]) = (u.x, u.y, u.z);
+                (self.ix[at], self.iy[at], self.iz[at]) = (1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+            }
+        }
+        self.dlow = dlow;
+        if closest {
+            self.bt.clear();
+            self.bt.extend_from_slice(&self.tmax);
+            self.bp.clear();
+            self.bp.resize(n, MISS);
+            self.bu.clear();
+            self.bu.resize(n, 0.0);
+            self.bv.clear();
+            self.bv.resize(n, 0.0);
+        }
+    }
 }
+
+/// Groups of at least this many rays test reproduced rays through the common-origin form when
+/// `tri_test=auto` (the crossover measured in BENCHMARKS.md § RTRPS, "Table 2 / Fig. 10").
+pub const ORIGIN_FORM_RAYS: usize = 16;
+
+/// Widest vector the leaves use (the group's rows are padded to it).
+const MAX_LANES: usize = 8;
 
 fn mask(n: usize) -> u64 {
     if n >= 64 {
@@ -150,7 +250,9 @@ fn setup(rays: &RayBatch, g: GroupSpec, s: &mut Scratch) -> Option<(Vec3, [Vec3;
     for i in 0..g.rows {
         for j in 0..g.cols {
             let r = g.ray(i, j);
-            if rays.origin(r) != o {
+            // Bit for bit: the common-origin triangle test computes `origin − v0` once, and
+            // `-0.0` and `0.0` can give it different zeros.
+            if rays.origin(r).to_array().map(f32::to_bits) != o.to_array().map(f32::to_bits) {
                 return None;
             }
             let d = rays.dir(r);
@@ -353,6 +455,11 @@ struct Walk<'a> {
     rays: &'a RayBatch,
     g: GroupSpec,
     start: usize,
+    /// The lane width of the leaves' ray tests.
+    w: Width,
+    /// Reproduced rays go through the common-origin form ([`Walk::rows`]), else one at a time
+    /// through the shared test ([`Walk::rows_moller`]).
+    origin_form: bool,
 }
 
 impl Walk<'_> {
@@ -386,7 +493,8 @@ impl Walk<'_> {
         }
         // Inner spheres depth first, each tested by the planes its parent hit (flat: every top
         // sphere is a bottom one); a fixed stack, deep enough for any binary tree over u32
-        // leaves.
+        // leaves. (Nearer children first measured no faster on the bunny's shadow grids:
+        // BENCHMARKS.md § RTRPS.)
         let mut stack = [(0u32, (0u64, 0u64)); MAX_DEPTH + 1];
         for top in tree.top(part) {
             stack[0] = (top, pm);
@@ -419,8 +527,8 @@ impl Walk<'_> {
         false
     }
 
-    /// Leaf `l`: its sphere against the planes `pm`, then each reproduced ray (a hit row × a hit
-    /// column) against its triangles with the shared test.
+    /// Leaf `l`: its sphere against the planes `pm`, then the rays it reproduces (a hit row × a
+    /// hit column) against its triangles, a row's columns `L::N` at a time ([`Self::rows`]).
     #[allow(clippy::too_many_arguments)]
     fn leaf(
         &self,
@@ -429,44 +537,248 @@ impl Walk<'_> {
         pm: (u64, u64),
         s: &mut Scratch,
         out: &mut Out<'_, '_>,
-        mut cost: Option<&mut CostMut<'_>>,
+        cost: Option<&mut CostMut<'_>>,
         n: &mut Counts,
         live: &mut usize,
     ) {
-        let (tree, g, rays, soup, start) = (self.tree, self.g, self.rays, self.soup, self.start);
+        let tree = self.tree;
         let Some((rm, cm)) = f.sphere(s, tree.leaf_c[l], tree.leaf_r[l], pm, self.cfg, n) else {
             return;
         };
+        // The hit columns by column index (the fan's bits are plane positions).
+        let mut cols = 0u64;
+        let mut bits = cm;
+        while bits != 0 {
+            cols |= 1 << s.cols.order[bits.trailing_zeros() as usize];
+            bits &= bits - 1;
+        }
         // The per-ray check (`ray_check`): a reproduced ray whose line passes farther from the
         // leaf's centre than its radius cannot report a hit there. In the grid frame every ray
-        // leaves the origin with unit direction `s.g[k]`; the frame is orthonormal to a few
-        // 1e-7 and the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5
-        // relative of the centre's distance and of the radius.
+        // leaves the origin with unit direction `g`; the frame is orthonormal to a few 1e-7 and
+        // the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5 relative
+        // of the centre's distance and of the radius (which also covers the rounding of
+        // `|c × g|²` in any order of evaluation).
         let check = self.cfg.ray_check.then(|| {
             let c = f.apply(tree.leaf_c[l]);
             let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
             (c, r * r)
         });
-        let cols = g.cols;
-        let [t0, t1] = tree.leaf_tris[l];
-        let ids = &tree.tris[t0 as usize..t1 as usize];
-        let mut rbits = rm;
+        s.tris.clear();
+        let leaf = Leaf {
+            rm,
+            cols,
+            check,
+            tris: tree.leaf_tris[l],
+        };
+        if !self.origin_form {
+            return self.rows_moller(&leaf, s, out, cost, n, live);
+        }
+        match self.w {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `rows_avx2` needs AVX2 and POPCNT; `width()` is `Eight` only on CPUs that
+            // have both.
+            Width::Eight => unsafe { self.rows_avx2(&leaf, s, out, cost, n, live) },
+            _ => self.rows::<Vec4>(&leaf, s, out, cost, n, live),
+        }
+    }
+
+    /// [`Self::rows`] eight lanes at a time, compiled for AVX2 and POPCNT (lane masks are
+    /// counted).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and POPCNT ([`lanes::width`] is [`Width::Eight`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt")]
+    unsafe fn rows_avx2(
+        &self,
+        leaf: &Leaf,
+        s: &mut Scratch,
+        out: &mut Out<'_, '_>,
+        cost: Option<&mut CostMut<'_>>,
+        n: &mut Counts,
+        live: &mut usize,
+    ) {
+        self.rows::<F32x8>(leaf, s, out, cost, n, live)
+    }
+
+    /// A leaf's reproduced rays, row by row and `L::N` columns at a time: the per-ray check,
+    /// then each triangle of the leaf through the common-origin form of the shared test
+    /// ([`TriFromOrigin`], §3.2's "common origin" row of Table 2: bit-identical to
+    /// [`crate::geom::intersect_triangle`], so it is exact), built once per leaf visit and only
+    /// when a ray survives the check.
+    #[inline(always)]
+    fn rows<L: Lanes>(
+        &self,
+        leaf: &Leaf,
+        s: &mut Scratch,
+        out: &mut Out<'_, '_>,
+        mut cost: Option<&mut CostMut<'_>>,
+        n: &mut Counts,
+        live: &mut usize,
+    ) {
+        let (g, soup, start) = (self.g, self.soup, self.start);
+        let ids = &self.tree.tris[leaf.tris[0] as usize..leaf.tris[1] as usize];
+        let ld = |v: &[f32], at: usize| {
+            let v = &v[at..at + L::N];
+            L::from_fn(|k| v[k])
+        };
+        let lane_bits = (1u64 << L::N) - 1;
+        let o = self.rays.origin(g.base);
+        let mut bounds: Option<([f32; 3], [f32; 3])> = None;
+        let mut rbits = leaf.rm;
         while rbits != 0 {
             let a = rbits.trailing_zeros() as usize;
             rbits &= rbits - 1;
             let i = s.rows.order[a] as usize;
-            let mut cbits = cm;
-            while cbits != 0 {
-                let b = cbits.trailing_zeros() as usize;
-                cbits &= cbits - 1;
-                let j = s.cols.order[b] as usize;
-                if s.done[i] >> j & 1 == 1 {
+            let want = leaf.cols & !s.done[i];
+            for ch in (0..g.cols).step_by(L::N) {
+                let bits = (want >> ch & lane_bits) as u32;
+                if bits == 0 {
                     continue;
                 }
-                let r = g.ray(i, j);
-                let k = i * cols + j;
+                let at = i * s.rs + ch;
+                n.rays_reproduced += u64::from(bits.count_ones());
+                let mut keep = bits;
+                if let Some((c, r2)) = leaf.check {
+                    let (gx, gy, gz) = (ld(&s.gx, at), ld(&s.gy, at), ld(&s.gz, at));
+                    let (cx, cy, cz) = (L::splat(c.x), L::splat(c.y), L::splat(c.z));
+                    let x = cy * gz - cz * gy;
+                    let y = cz * gx - cx * gz;
+                    let z = cx * gy - cy * gx;
+                    keep &= L::bitmask((x * x + y * y + z * z).cmple(L::splat(r2)));
+                    n.ray_culled += u64::from((bits & !keep).count_ones());
+                    if keep == 0 {
+                        continue;
+                    }
+                }
+                let d = [ld(&s.dx, at), ld(&s.dy, at), ld(&s.dz, at)];
+                let tmin = ld(&s.tmin, at);
+                if self.cfg.box_check {
+                    // The leaf's triangles' box less the origin, built with the prepared
+                    // triangles when a first lane needs them.
+                    let (lo, hi) = match bounds {
+                        Some(b) => b,
+                        None => {
+                            let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+                            for &p in ids {
+                                let p = p as usize;
+                                lo = lo.min(soup.v0[p]).min(soup.v1[p]).min(soup.v2[p]);
+                                hi = hi.max(soup.v0[p]).max(soup.v1[p]).max(soup.v2[p]);
+                            }
+                            let b = ((lo - o).to_array(), (hi - o).to_array());
+                            bounds = Some(b);
+                            b
+                        }
+                    };
+                    // The shared slab interval of the triangles' box: a lane whose interval is
+                    // empty or outside `[tmin, tmax]` (the closest hit so far) has no hit here.
+                    let inv = [ld(&s.ix, at), ld(&s.iy, at), ld(&s.iz, at)];
+                    let (enter, exit) = slab_lanes(d, inv, lo.map(L::splat), hi.map(L::splat));
+                    let far = match out {
+                        Out::Hits(_) => ld(&s.bt, at),
+                        Out::Occluded(_) => ld(&s.tmax, at),
+                    };
+                    let ok = enter.cmple(exit) & enter.cmple(far) & exit.cmpge(tmin);
+                    let before = keep;
+                    keep &= L::bitmask(ok);
+                    n.box_culled += u64::from((before & !keep).count_ones());
+                    if keep == 0 {
+                        continue;
+                    }
+                }
+                if s.tris.is_empty() {
+                    let dlow = s.dlow;
+                    s.tris.extend(ids.iter().map(|&p| {
+                        let p = p as usize;
+                        TriFromOrigin::new(o, soup.v0[p], soup.v1[p], soup.v2[p], dlow)
+                    }));
+                }
+                let tests = ids.len() as u64;
+                n.tri_tests += tests * u64::from(keep.count_ones());
+                if let Some(c) = cost.as_deref_mut() {
+                    let mut m = keep;
+                    while m != 0 {
+                        let r = g.ray(i, ch + m.trailing_zeros() as usize);
+                        m &= m - 1;
+                        c.add(r - start, 1, tests, tests);
+                    }
+                }
+                match out {
+                    Out::Hits(_) => {
+                        let mut bt = ld(&s.bt, at);
+                        for (q, tri) in s.tris.iter().enumerate() {
+                            let h = tri.intersect_lanes_each(d, tmin, bt);
+                            let mut m = h.mask & keep;
+                            if m == 0 {
+                                continue;
+                            }
+                            let p = ids[q];
+                            while m != 0 {
+                                let k = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                let x = at + k;
+                                let t = h.t.lane(k);
+                                if closer(t, p, s.bt[x], s.bp[x]) {
+                                    (s.bt[x], s.bp[x], s.bu[x], s.bv[x]) =
+                                        (t, p, h.u.lane(k), h.v.lane(k));
+                                }
+                            }
+                            bt = ld(&s.bt, at);
+                        }
+                    }
+                    Out::Occluded(oc) => {
+                        let tmax = ld(&s.tmax, at);
+                        for tri in &s.tris {
+                            let m = tri.intersect_lanes_each(d, tmin, tmax).mask & keep;
+                            if m == 0 {
+                                continue;
+                            }
+                            let mut b = m;
+                            while b != 0 {
+                                let k = b.trailing_zeros() as usize;
+                                b &= b - 1;
+                                oc[g.ray(i, ch + k) - start] = true;
+                            }
+                            s.done[i] |= u64::from(m) << ch;
+                            *live -= m.count_ones() as usize;
+                            keep &= !m;
+                            if keep == 0 {
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Walk<'_> {
+    /// [`Walk::rows`] one reproduced ray at a time through the shared test (Table 2's "Möller"
+    /// row: nothing is prepared per leaf, which pays for small groups, BENCHMARKS.md § RTRPS).
+    /// The box check does not apply here.
+    fn rows_moller(
+        &self,
+        leaf: &Leaf,
+        s: &mut Scratch,
+        out: &mut Out<'_, '_>,
+        mut cost: Option<&mut CostMut<'_>>,
+        n: &mut Counts,
+        live: &mut usize,
+    ) {
+        let (g, rays, soup, start) = (self.g, self.rays, self.soup, self.start);
+        let ids = &self.tree.tris[leaf.tris[0] as usize..leaf.tris[1] as usize];
+        let mut rbits = leaf.rm;
+        while rbits != 0 {
+            let i = s.rows.order[rbits.trailing_zeros() as usize] as usize;
+            rbits &= rbits - 1;
+            let mut cbits = leaf.cols & !s.done[i];
+            while cbits != 0 {
+                let j = cbits.trailing_zeros() as usize;
+                cbits &= cbits - 1;
+                let (r, k, x) = (g.ray(i, j), i * g.cols + j, i * s.rs + j);
                 n.rays_reproduced += 1;
-                if let Some((c, r2)) = check {
+                if let Some((c, r2)) = leaf.check {
                     if c.cross(s.g[k]).length_squared() > r2 {
                         n.ray_culled += 1;
                         continue;
@@ -477,39 +789,19 @@ impl Walk<'_> {
                 if let Some(c) = cost.as_deref_mut() {
                     c.add(r - start, 1, ids.len() as u64, ids.len() as u64);
                 }
-                match out {
-                    Out::Hits(_) => {
-                        for &p in ids {
-                            let pu = p as usize;
-                            if let Some(h) = intersect_triangle(
-                                ro,
-                                rd,
-                                soup.v0[pu],
-                                soup.v1[pu],
-                                soup.v2[pu],
-                                tmin,
-                                s.bt[k],
-                            ) {
-                                if closer(h.t, p, s.bt[k], s.bp[k]) {
-                                    (s.bt[k], s.bp[k], s.bu[k], s.bv[k]) = (h.t, p, h.u, h.v);
+                for &p in ids {
+                    let pu = p as usize;
+                    let (v0, v1, v2) = (soup.v0[pu], soup.v1[pu], soup.v2[pu]);
+                    match out {
+                        Out::Hits(_) => {
+                            if let Some(h) = intersect_triangle(ro, rd, v0, v1, v2, tmin, s.bt[x]) {
+                                if closer(h.t, p, s.bt[x], s.bp[x]) {
+                                    (s.bt[x], s.bp[x], s.bu[x], s.bv[x]) = (h.t, p, h.u, h.v);
                                 }
                             }
                         }
-                    }
-                    Out::Occluded(o) => {
-                        let tmax = rays.tmax[r];
-                        for &p in ids {
-                            let pu = p as usize;
-                            if intersect_triangle(
-                                ro,
-                                rd,
-                                soup.v0[pu],
-                                soup.v1[pu],
-                                soup.v2[pu],
-                                tmin,
-                                tmax,
-                            )
-                            .is_some()
+                        Out::Occluded(o) => {
+                            if intersect_triangle(ro, rd, v0, v1, v2, tmin, rays.tmax[r]).is_some()
                             {
                                 o[r - start] = true;
                                 s.done[i] |= 1 << j;
@@ -522,6 +814,18 @@ impl Walk<'_> {
             }
         }
     }
+}
+
+/// What [`Walk::rows`] needs of a leaf that passed its sphere test.
+struct Leaf {
+    /// Hit rows (plane positions).
+    rm: u64,
+    /// Hit columns (column indices).
+    cols: u64,
+    /// Grid-frame centre and squared radius for the per-ray sphere check.
+    check: Option<(Vec3, f32)>,
+    /// The leaf's range in the tree's triangle order.
+    tris: [u32; 2],
 }
 
 /// Traces group `g` (rays of the chunk starting at `start`) into `out`.
@@ -586,21 +890,7 @@ pub fn trace(
     let r64 = frame.map(|v| v.as_dvec3());
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
-    let closest = matches!(out, Out::Hits(_));
-    if closest {
-        s.bt.clear();
-        s.bp.clear();
-        s.bu.clear();
-        s.bv.clear();
-        for i in 0..g.rows {
-            for j in 0..cols {
-                s.bt.push(rays.tmax[g.ray(i, j)]);
-            }
-        }
-        s.bp.resize(nr, MISS);
-        s.bu.resize(nr, 0.0);
-        s.bv.resize(nr, 0.0);
-    }
+    s.load(rays, g, matches!(out, Out::Hits(_)));
     s.done[..g.rows].fill(0);
     let mut live = nr;
     let full = (mask(g.rows), mask(cols));
@@ -611,6 +901,12 @@ pub fn trace(
         rays,
         g,
         start,
+        w: lanes::width(),
+        origin_form: match cfg.tri_test {
+            TriTest::Origin => true,
+            TriTest::Moller => false,
+            TriTest::Auto => nr >= ORIGIN_FORM_RAYS,
+        },
     };
     // The part tree depth first (its root is the scene sphere), world spheres brought into the
     // grid frame; a bottom node's parts each get their own frame. A fixed stack, deep enough for
@@ -649,7 +945,7 @@ pub fn trace(
     if let Out::Hits(h) = out {
         for i in 0..g.rows {
             for j in 0..cols {
-                let k = i * cols + j;
+                let k = i * s.rs + j;
                 if s.bp[k] != MISS {
                     let r = g.ray(i, j) - start;
                     (h.t[r], h.prim[r], h.u[r], h.v[r]) = (s.bt[k], s.bp[k], s.bu[k], s.bv[k]);

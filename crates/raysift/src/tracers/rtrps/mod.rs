@@ -108,6 +108,16 @@ pub struct Config {
     /// Test each reproduced ray against the leaf's sphere before its triangles (ours: a hit row
     /// × a hit column is the bounding square of the sphere's footprint). Default true.
     pub ray_check: bool,
+    /// Test each reproduced ray against the box of the leaf's triangles, with the shared slab
+    /// test's arithmetic, before its triangles (ours: exact, as the box gate puts every hit in
+    /// that interval). Default false (BENCHMARKS.md § RTRPS: it removes 84% of the triangle
+    /// tests on the bunny's shadow grids, and costs more than they did).
+    pub box_check: bool,
+    /// The ray/triangle test of reproduced rays (§3.2, Table 2): `moller` (the shared test, one
+    /// ray at a time), `origin` (its common-origin form, prepared once per leaf visit and run
+    /// eight or four rays at a time: bit-identical), or `auto` (`origin` for groups of at least
+    /// `group::ORIGIN_FORM_RAYS` rays, the measured crossover). Default `auto`.
+    pub tri_test: TriTest,
     /// Groups whose fitted row or column planes hold their rays only to a sine above this are
     /// traced as random rays (ours; 0..=1, 1: never). Default 0.2 (BENCHMARKS.md § RTRPS:
     /// shadow grids and camera tiles stay far below it, hemisphere grids are above).
@@ -117,6 +127,19 @@ pub struct Config {
     /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
     /// its layout (tests). Default 0.
     pub grid_side: usize,
+}
+
+/// [`Config::tri_test`].
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum TriTest {
+    /// By group size.
+    #[default]
+    Auto,
+    /// The shared test, one reproduced ray at a time.
+    Moller,
+    /// The common-origin form, a row's reproduced rays a vector at a time.
+    Origin,
 }
 
 /// [`Config::mode`].
@@ -142,6 +165,8 @@ impl Default for Config {
             levels: Levels::Binary,
             depth_cull: true,
             ray_check: true,
+            box_check: false,
+            tri_test: TriTest::Auto,
             max_slack: 0.2,
             packet: 16,
             grid_side: 0,
@@ -225,6 +250,14 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "test each reproduced ray against the leaf sphere before its triangles (ours)",
     },
     OptionDoc {
+        key: "box_check",
+        doc: "test each reproduced ray against the leaf's triangle box before its triangles (ours)",
+    },
+    OptionDoc {
+        key: "tri_test",
+        doc: "reproduced rays' triangle test: auto, moller (one ray at a time) or origin (common origin, in lanes)",
+    },
+    OptionDoc {
         key: "max_slack",
         doc: "groups whose rays lie farther from their planes (sine) go as random rays (0..=1)",
     },
@@ -278,6 +311,18 @@ pub const PRESETS: &[Preset] = &[
         name: "4x4 tiles, big leaves",
         opts: &[("packet", "4"), ("leaf_size", "7")],
     },
+    Preset {
+        name: "any batch as 3x3 groups, common-origin form, box check",
+        opts: &[
+            ("grid_side", "3"),
+            ("tri_test", "origin"),
+            ("box_check", "true"),
+        ],
+    },
+    Preset {
+        name: "Möller form for every group",
+        opts: &[("tri_test", "moller")],
+    },
 ];
 
 crate::counters! {
@@ -308,6 +353,9 @@ crate::counters! {
         rays_reproduced,
         /// Reproduced rays whose line misses the leaf sphere (`ray_check`): no triangle test.
         ray_culled,
+        /// Reproduced rays that passed the sphere check but miss the leaf's triangle box
+        /// within their `[tmin, tmax]` (`box_check`): no triangle test.
+        box_culled,
         /// Ray/sphere tests of random rays.
         ray_sphere,
         /// Ray/triangle tests (shared test).
