@@ -371,6 +371,45 @@ fn family(
     }
     if a <= b {
         match fan.monotone(lo, hi, c, e).filter(|_| cfg.tree) {
+            Some(sign) if cfg.ranges => {
+                // Distances `sign·f` decrease with position, so the hit planes are one run: if
+                // both outer planes hit, every plane between does; else its ends are found by
+                // two binary searches (ours; claiming the whole run only adds reproduced rays,
+                // which are tested exactly).
+                let both = a > lo as isize && hit >> lo & 1 == 1 && hit >> hi & 1 == 1;
+                let run = if both {
+                    Some((a, b))
+                } else {
+                    let sf = |k: isize, n: &mut Counts| {
+                        n.internal_tests += 1;
+                        sign * fan.signed(k as usize, c)
+                    };
+                    // First position with `sf <= bound`, then the last with `sf >= -bound`.
+                    let (mut x, mut y) = (a, b + 1);
+                    while x < y {
+                        let m = (x + y) / 2;
+                        if sf(m, n) <= bound {
+                            y = m;
+                        } else {
+                            x = m + 1;
+                        }
+                    }
+                    let first = x;
+                    let mut y = b + 1;
+                    while x < y {
+                        let m = (x + y) / 2;
+                        if sf(m, n) >= -bound {
+                            x = m + 1;
+                        } else {
+                            y = m;
+                        }
+                    }
+                    (first < x).then_some((first, x - 1))
+                };
+                if let Some((f, l)) = run {
+                    hit |= mask(l as usize + 1) & !mask(f as usize);
+                }
+            }
             Some(sign) => {
                 // Binary-tree order: centre plane first; a miss sends the search one way.
                 let mut stack = [(0isize, 0isize); 64];

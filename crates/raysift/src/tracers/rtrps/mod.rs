@@ -91,6 +91,10 @@ pub struct Config {
     pub culling: bool,
     /// Binary-tree plane order (§3.1.3). Default true.
     pub tree: bool,
+    /// Where the binary tree applies (a sorted fan, the sign rule holding), find the hit planes
+    /// as one run: all of them when both outer planes hit, else its two ends by binary search
+    /// (ours, after §3.1.3: the tree tests every hit plane). Default true.
+    pub ranges: bool,
     /// Triangles per leaf sphere (1..=64). Default 1 (BENCHMARKS.md § RTRPS: leaves of 1 and
     /// bottom spheres of 8 leaves were fastest on the bunny's shadow grids).
     pub leaf_size: usize,
@@ -159,6 +163,7 @@ impl Default for Config {
             mode: Mode::Planes,
             culling: true,
             tree: true,
+            ranges: true,
             leaf_size: 1,
             cluster: 8,
             centre: Centre::Box,
@@ -224,6 +229,10 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc {
         key: "tree",
         doc: "binary-tree plane order (§3.1.3)",
+    },
+    OptionDoc {
+        key: "ranges",
+        doc: "hit planes of a sorted fan as one run, its ends by binary search (ours)",
     },
     OptionDoc {
         key: "leaf_size",
@@ -292,8 +301,13 @@ pub const PRESETS: &[Preset] = &[
         opts: &[("tree", "false"), ("levels", "flat")],
     },
     Preset {
-        name: "tree only, mean centres, no inner spheres",
-        opts: &[("culling", "false"), ("centre", "mean"), ("cluster", "0")],
+        name: "the paper's tree only, mean centres, no inner spheres",
+        opts: &[
+            ("culling", "false"),
+            ("ranges", "false"),
+            ("centre", "mean"),
+            ("cluster", "0"),
+        ],
     },
     Preset {
         name: "any batch as 3x3 groups, leaves of two",
@@ -308,8 +322,8 @@ pub const PRESETS: &[Preset] = &[
         opts: &[("grid_side", "1"), ("packet", "1")],
     },
     Preset {
-        name: "4x4 tiles, big leaves",
-        opts: &[("packet", "4"), ("leaf_size", "7")],
+        name: "4x4 tiles, big leaves, runs without culling",
+        opts: &[("packet", "4"), ("leaf_size", "7"), ("culling", "false")],
     },
     Preset {
         name: "any batch as 3x3 groups, common-origin form, box check",
