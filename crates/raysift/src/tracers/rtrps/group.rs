@@ -1,7 +1,8 @@
-//! One ray group as ray-planes (§2.2–2.3, Algorithm 2, §3.1): the grid frame and its row and
-//! column fans, the sphere walk (part tree → parts → inner → leaves) with each sphere tested by the
-//! planes its parent hit, and the rays reproduced at leaves (a hit row × a hit column), each
-//! tested against the leaf's triangles with the shared triangle test.
+//! One ray group as ray-planes (§2.2–2.3, Algorithm 2, §3.1–3.2): the grid frame and its row
+//! and column fans, the sphere walk (part tree → parts → inner → leaves) with each sphere tested
+//! by the planes its parent hit, and the rays reproduced at leaves (a hit row × a hit column),
+//! each tested against the leaf's triangles with the shared triangle test, one ray at a time or
+//! through its common-origin form a row's vector of rays at a time (bit-identical).
 
 use super::{random, Config, Counts, TriTest};
 use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};

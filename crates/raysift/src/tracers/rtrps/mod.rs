@@ -5,7 +5,7 @@
 //! | file | holds | paper |
 //! |---|---|---|
 //! | `mod.rs` | [`Config`], counters, [`Rtrps`], `impl Tracer` (prepare = build or update; the plan of a call) | §2.3, Alg. 1 |
-//! | `group.rs` | one N×N (or R×C) group: grid frame, row and column fans, the sphere walk, reproduced rays | §2.2–2.3, §3.1, Alg. 2 |
+//! | `group.rs` | one N×N (or R×C) group: grid frame, row and column fans, the sphere walk, reproduced rays and their triangle forms | §2.2–2.3, §3.1–3.2, Alg. 2 |
 //! | `random.rs` | random rays: one ray at a time over the same hierarchy | §4.2 (Table 5's baseline) |
 //! | [`crate::accel::spheres`] | the sphere hierarchy, rigid update and refit | §2.1, §4.1 |
 //! | [`crate::geom::sphere_plane`] | fan fit, 2D line/circle test, wedge cull, sign rule, ray/sphere | §3.1.1–3.1.3 |
@@ -58,9 +58,22 @@
 //!   then meets every sphere near the origin (measured in BENCHMARKS.md § RTRPS);
 //! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
 //!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
-//! - §3.2's common-origin and aligned ray-plane triangle forms are not implemented: the exactness
-//!   contract allows them only as culls before the shared test, which would add work, not
-//!   remove it. Every reproduced ray is tested with the shared test (Table 2's "Möller" row).
+//! - §3.2's triangle forms (`tri_test`): reproduced rays go through the shared test one at a
+//!   time (Table 2's "Möller" row) or through its common-origin form
+//!   ([`TriFromOrigin`](crate::geom::TriFromOrigin): the parts that depend only on the triangle
+//!   and the group's origin computed once per leaf visit, by the shared test's own operations,
+//!   so bit-identical), a row's reproduced rays eight (AVX2) or four at a time; `auto` picks by
+//!   group size at the measured crossover (`group::ORIGIN_FORM_RAYS`, Fig. 10's rule). The
+//!   aligned ray-plane form (Eqs. 6–8) is not implemented: its arithmetic differs from the
+//!   shared test's, so the contract would allow it only as a cull before that test, which adds
+//!   work;
+//! - the hit planes of a sorted fan found as one run (`ranges`, after §3.1.3's binary tree,
+//!   which tests every hit plane): where the sign rule holds the distances are monotone, so
+//!   both outer planes hitting means every plane between does, and otherwise the run's two
+//!   ends are found by binary search;
+//! - an exact per-ray box check (`box_check`, off by default): the shared slab interval of the
+//!   leaf's triangles' box, which the box gate puts every hit in (measured slower than the
+//!   triangle tests it removes);
 //! - the sphere order is the hierarchy's (no near-to-far order; closest hits keep the smallest
 //!   `t` by [`closer`](crate::tracer::closer)).
 
