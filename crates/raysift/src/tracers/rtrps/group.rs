@@ -10,7 +10,7 @@ use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
 use crate::geom::lanes::F32x8;
 use crate::geom::lanes::{self, Lanes, Width};
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
-use crate::geom::{intersect_triangle, slab_lanes, TriFromOrigin};
+use crate::geom::{intersect_triangle, slab_lanes, RayCone, TriFromOrigin};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut, HitsMut};
@@ -125,6 +125,8 @@ pub struct Scratch {
     dlow: f32,
     /// The current leaf's triangles prepared for the group's origin (built on first use).
     tris: Vec<TriFromOrigin<f32>>,
+    /// A cone holding the group's directions (`edge_cull`).
+    cone: Option<RayCone>,
     done: [u64; MAX_FAN],
     rows: PlaneFan,
     cols: PlaneFan,
@@ -156,6 +158,7 @@ impl Scratch {
             bv: Vec::new(),
             dlow: 0.0,
             tris: Vec::new(),
+            cone: None,
             done: [0; MAX_FAN],
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
@@ -229,6 +232,10 @@ impl Scratch {
 /// Groups of at least this many rays test reproduced rays through the common-origin form when
 /// `tri_test=auto` (the crossover measured in BENCHMARKS.md § RTRPS, "Table 2 / Fig. 10").
 pub const ORIGIN_FORM_RAYS: usize = 16;
+
+/// Leaves whose hit rows × hit columns cover at least this many rays go through the edge cull
+/// first (BENCHMARKS.md § RTRPS).
+pub const EDGE_CULL_RAYS: u32 = 16;
 
 /// Widest vector the leaves use (the group's rows are padded to it).
 const MAX_LANES: usize = 8;
@@ -603,6 +610,23 @@ impl Walk<'_> {
             let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
             (c, r * r)
         });
+        // The edge cull (`edge_cull`): a leaf that would reproduce many rays is first tested
+        // against the group's whole cone of directions; when the shared test provably refuses
+        // every ray of the cone for each of its triangles, nothing is reproduced.
+        if let Some(cone) = s.cone {
+            let many = rm.count_ones() * cols.count_ones() >= EDGE_CULL_RAYS;
+            let [t0, t1] = tree.leaf_tris[l];
+            let (soup, o) = (self.soup, self.rays.origin(self.g.base));
+            if many
+                && tree.tris[t0 as usize..t1 as usize].iter().all(|&p| {
+                    let p = p as usize;
+                    cone.misses(o, soup.v0[p], soup.v1[p], soup.v2[p])
+                })
+            {
+                n.edge_culled += 1;
+                return;
+            }
+        }
         s.tris.clear();
         let leaf = Leaf {
             rm,
@@ -931,6 +955,14 @@ pub fn trace(
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
     s.load(rays, g, matches!(out, Out::Hits(_)));
+    s.cone = if cfg.edge_cull {
+        RayCone::of(
+            frame[2],
+            (0..g.rows).flat_map(|i| (0..cols).map(move |j| rays.dir(g.ray(i, j)))),
+        )
+    } else {
+        None
+    };
     s.done[..g.rows].fill(0);
     let mut live = nr;
     let full = (mask(g.rows), mask(cols));

@@ -130,6 +130,10 @@ pub struct Config {
     /// that interval). Default false (BENCHMARKS.md § RTRPS: it removes 84% of the triangle
     /// tests on the bunny's shadow grids, and costs more than they did).
     pub box_check: bool,
+    /// Before reproducing rays at a leaf that would reproduce many, prove from the group's cone
+    /// of directions that the shared test refuses every ray on its barycentric signs
+    /// (`geom::RayCone`: the common-origin form's edge planes; ours). Default true.
+    pub edge_cull: bool,
     /// The ray/triangle test of reproduced rays (§3.2, Table 2): `moller` (the shared test, one
     /// ray at a time), `origin` (its common-origin form, prepared once per leaf visit and run
     /// eight or four rays at a time: bit-identical), or `auto` (`origin` for groups of at least
@@ -184,6 +188,7 @@ impl Default for Config {
             depth_cull: true,
             ray_check: true,
             box_check: false,
+            edge_cull: true,
             tri_test: TriTest::Auto,
             max_slack: 0.2,
             packet: 16,
@@ -276,6 +281,10 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "test each reproduced ray against the leaf's triangle box before its triangles (ours)",
     },
     OptionDoc {
+        key: "edge_cull",
+        doc: "skip a leaf when the group's cone of directions provably misses its triangles (ours)",
+    },
+    OptionDoc {
         key: "tri_test",
         doc: "reproduced rays' triangle test: auto, moller (one ray at a time) or origin (common origin, in lanes)",
     },
@@ -306,6 +315,7 @@ pub const PRESETS: &[Preset] = &[
             ("tree", "false"),
             ("depth_cull", "false"),
             ("ray_check", "false"),
+            ("edge_cull", "false"),
             ("max_slack", "1"),
         ],
     },
@@ -383,6 +393,9 @@ crate::counters! {
         /// Reproduced rays that passed the sphere check but miss the leaf's triangle box
         /// within their `[tmin, tmax]` (`box_check`): no triangle test.
         box_culled,
+        /// Leaves skipped because the group's cone of directions provably misses their
+        /// triangles (`edge_cull`).
+        edge_culled,
         /// Ray/sphere tests of random rays.
         ray_sphere,
         /// Ray/triangle tests (shared test).
