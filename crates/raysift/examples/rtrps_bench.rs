@@ -139,42 +139,35 @@ fn fig11(spec: &str, origins: usize, shadow_only: bool) {
         sh.len(),
         bo.len()
     );
-    println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | depth culled | rays reproduced | tri tests |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| rays | config | centre | outline | internal | total | vs all planes | spheres visited | culled | depth culled | rays reproduced | tri tests | leaves edge-culled |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let sets = [("shadow 16x16", &sh, true), ("bounce 8x8", &bo, false)];
     for (what, rays, occl) in sets.into_iter().take(if shadow_only { 1 } else { 2 }) {
         for centre in ["box", "mean"] {
             let mut base = 0;
-            for (name, c, t, lv, dc, rc) in [
-                ("all planes", "false", "false", "flat", "false", "false"),
-                ("culling", "true", "false", "flat", "false", "false"),
-                ("tree", "false", "true", "flat", "false", "false"),
-                ("culling+tree", "true", "true", "flat", "false", "false"),
-                (
-                    "+ binary levels",
-                    "true",
-                    "true",
-                    "binary",
-                    "false",
-                    "false",
-                ),
-                ("+ depth cull", "true", "true", "binary", "true", "false"),
-                (
-                    "+ ray check (default)",
-                    "true",
-                    "true",
-                    "binary",
-                    "true",
-                    "true",
-                ),
+            // (row, culling, tree, levels, depth cull, ray check, plane runs, edge cull): the
+            // paper's rows first (no plane runs, no edge cull), then ours one at a time.
+            let (f, t) = ("false", "true");
+            for (name, c, tr, lv, dc, rc, rg, ec) in [
+                ("all planes", f, f, "flat", f, f, f, f),
+                ("culling", t, f, "flat", f, f, f, f),
+                ("tree", f, t, "flat", f, f, f, f),
+                ("culling+tree", t, t, "flat", f, f, f, f),
+                ("+ binary levels", t, t, "binary", f, f, f, f),
+                ("+ depth cull", t, t, "binary", t, f, f, f),
+                ("+ ray check", t, t, "binary", t, t, f, f),
+                ("+ plane runs", t, t, "binary", t, t, t, f),
+                ("+ edge cull (default)", t, t, "binary", t, t, t, t),
             ] {
                 let o = [
                     ("culling", c),
-                    ("tree", t),
+                    ("tree", tr),
                     ("centre", centre),
                     ("levels", lv),
                     ("depth_cull", dc),
                     ("ray_check", rc),
+                    ("ranges", rg),
+                    ("edge_cull", ec),
                     // Every group as ray-planes, however loose (the figure counts plane tests).
                     ("max_slack", "1"),
                 ];
@@ -190,14 +183,15 @@ fn fig11(spec: &str, origins: usize, shadow_only: bool) {
                     base = o + i;
                 }
                 println!(
-                    "| {what} | {name} | {centre} | {o} | {i} | {} | {:.1}% | {} | {} | {} | {} | {} |",
+                    "| {what} | {name} | {centre} | {o} | {i} | {} | {:.1}% | {} | {} | {} | {} | {} | {} |",
                     o + i,
                     100.0 * (o + i) as f64 / base as f64,
                     w.get("spheres_visited"),
                     w.get("spheres_culled"),
                     w.get("depth_culled"),
                     w.get("rays_reproduced"),
-                    w.get("tri_tests")
+                    w.get("tri_tests"),
+                    w.get("edge_culled")
                 );
             }
         }

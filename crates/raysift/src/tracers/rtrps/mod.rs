@@ -71,6 +71,12 @@
 //!   which tests every hit plane): where the sign rule holds the distances are monotone, so
 //!   both outer planes hitting means every plane between does, and otherwise the run's two
 //!   ends are found by binary search;
+//! - the edge cull (`edge_cull`): before a leaf reproduces many rays (at least
+//!   `group::EDGE_CULL_RAYS`), a cone holding all the group's directions is tested against
+//!   each of its triangles' edge planes through the origin (`geom::RayCone`: the shared test's
+//!   `det`, `u·det` and `v·det` are linear in the direction for one origin, so their signs over
+//!   the whole cone, with the f32 rounding bounded, prove that every ray is refused). It removes
+//!   the triangles around a shadow grid's origin, which every plane meets;
 //! - an exact per-ray box check (`box_check`, off by default): the shared slab interval of the
 //!   leaf's triangles' box, which the box gate puts every hit in (measured slower than the
 //!   triangle tests it removes);
