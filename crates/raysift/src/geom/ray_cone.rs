@@ -54,10 +54,17 @@ impl RayCone {
             cos = cos.min(d.dot(z) / l);
         }
         // f64 rounding of the cosines (a few 1e-16), with room.
-        let cos = cos - 1e-12;
-        if !(cos >= 0.5) {
+        Self::with_cos(axis, cos - 1e-12)
+    }
+
+    /// The cone about unit `axis` (normalised again here) with half-angle cosine `cos`, which the
+    /// caller guarantees is at most that of every direction it stands for. `None` above 60°.
+    pub fn with_cos(axis: Vec3, cos: f64) -> Option<Self> {
+        let z = axis.as_dvec3().normalize_or_zero();
+        if z == DVec3::ZERO || !z.is_finite() || !(cos >= 0.5) {
             return None;
         }
+        let cos = cos.min(1.0);
         Some(Self {
             z,
             cos,

@@ -180,8 +180,9 @@ impl Scratch {
     }
 
     /// The structure-of-arrays of group `g` (after [`setup`]: `self.g` holds its grid-frame
-    /// directions), closest-hit slots reset when `closest`.
-    fn load(&mut self, rays: &RayBatch, g: GroupSpec, closest: bool) {
+    /// directions), closest-hit slots reset when `closest`, reciprocal directions only with
+    /// `inverse` (the box check).
+    fn load(&mut self, rays: &RayBatch, g: GroupSpec, closest: bool, inverse: bool) {
         let rs = g.cols.next_multiple_of(MAX_LANES);
         self.rs = rs;
         let n = g.rows * rs;
@@ -212,7 +213,9 @@ impl Scratch {
                 (self.dx[at], self.dy[at], self.dz[at]) = (d.x, d.y, d.z);
                 (self.tmin[at], self.tmax[at]) = (rays.tmin[r], rays.tmax[r]);
                 (self.gx[at], self.gy[at], self.gz[at]) = (u.x, u.y, u.z);
-                (self.ix[at], self.iy[at], self.iz[at]) = (1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+                if inverse {
+                    (self.ix[at], self.iy[at], self.iz[at]) = (1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+                }
             }
         }
         self.dlow = dlow;
@@ -954,12 +957,13 @@ pub fn trace(
     let r64 = frame.map(|v| v.as_dvec3());
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
-    s.load(rays, g, matches!(out, Out::Hits(_)));
+    s.load(rays, g, matches!(out, Out::Hits(_)), cfg.box_check);
+    // The group's cone about the frame's z: the rays' grid-frame unit directions `s.g` are
+    // within a few 1e-7 of the true ones (normalised and rotated in f32), so their least `z`
+    // less 1e-6 bounds every true cosine.
     s.cone = if cfg.edge_cull {
-        RayCone::of(
-            frame[2],
-            (0..g.rows).flat_map(|i| (0..cols).map(move |j| rays.dir(g.ray(i, j)))),
-        )
+        let least = s.g.iter().fold(f32::INFINITY, |m, u| m.min(u.z));
+        RayCone::with_cos(frame[2], f64::from(least) - 1e-6)
     } else {
         None
     };
