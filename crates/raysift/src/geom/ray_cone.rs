@@ -59,6 +59,8 @@ impl RayCone {
 
     /// The cone about unit `axis` (normalised again here) with half-angle cosine `cos`, which the
     /// caller guarantees is at most that of every direction it stands for. `None` above 60°.
+    // Negated comparison on purpose: it rejects a NaN cosine too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn with_cos(axis: Vec3, cos: f64) -> Option<Self> {
         let z = axis.as_dvec3().normalize_or_zero();
         if z == DVec3::ZERO || !z.is_finite() || !(cos >= 0.5) {

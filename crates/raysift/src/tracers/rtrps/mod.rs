@@ -5,7 +5,8 @@
 //! | file | holds | paper |
 //! |---|---|---|
 //! | `mod.rs` | [`Config`], counters, [`Rtrps`], `impl Tracer` (prepare = build or update; the plan of a call) | §2.3, Alg. 1 |
-//! | `group.rs` | one N×N (or R×C) group: grid frame, row and column fans, the sphere walk, reproduced rays and their triangle forms | §2.2–2.3, §3.1–3.2, Alg. 2 |
+//! | `group.rs` | one N×N (or R×C) group: grid frame, row and column fans, the sphere walk | §2.2–2.3, §3.1, Alg. 2 |
+//! | `leaf.rs` | a leaf of the walk: its plane tests, the edge cull, the reproduced rays and their triangle forms | §2.3, §3.2 |
 //! | `random.rs` | random rays: one ray at a time over the same hierarchy | §4.2 (Table 5's baseline) |
 //! | [`crate::accel::spheres`] | the sphere hierarchy, rigid update and refit | §2.1, §4.1 |
 //! | [`crate::geom::sphere_plane`] | fan fit, 2D line/circle test, wedge cull, sign rule, ray/sphere | §3.1.1–3.1.3 |
@@ -84,6 +85,7 @@
 //!   `t` by [`closer`](crate::tracer::closer)).
 
 mod group;
+mod leaf;
 mod random;
 
 use crate::accel::spheres::{BuildConfig, Centre, Levels, SphereTree};
