@@ -214,6 +214,41 @@ fn triangle_test_forms_on_ties_tmin_per_ray_and_signed_zero_origins() {
     }
 }
 
+/// The scratch of a chunk is a fixed set of per-group arrays: for 16×16 grids it stays between
+/// 12 and 32 KiB (per ray of a group: 12 B of frame directions and 4 B in each of 8 arrays for
+/// any hits, 12 for closest hits; the fans and the leaf's prepared triangles besides), and does
+/// not grow with the batch.
+#[test]
+fn scratch_is_per_group_not_per_batch() {
+    let scene = procedural::icosphere(2000);
+    let mut t = Rtrps::new(Default::default()).unwrap();
+    t.prepare(&scene).unwrap();
+    let origins = |n: usize| -> Vec<Vec3> {
+        (0..n)
+            .map(|k| {
+                Vec3::new(
+                    3.0,
+                    (k % 20) as f32 * 0.05 - 0.5,
+                    (k / 20) as f32 * 0.05 - 0.5,
+                )
+            })
+            .collect()
+    };
+    let mut peaks = Vec::new();
+    for n in [40, 400] {
+        let b = grids(&origins(n), -Vec3::X, 16, 0.2);
+        let (_, closest) = t.intersect_timed(&scene, &b).unwrap();
+        let (_, any) = t.occluded_timed(&scene, &b).unwrap();
+        assert!(closest.work.get("groups") > 0);
+        for (what, p) in [("closest", closest.peak_bytes), ("any", any.peak_bytes)] {
+            assert!((12 << 10..=32 << 10).contains(&p), "{what}: {p} B");
+        }
+        assert!(closest.peak_bytes > any.peak_bytes);
+        peaks.push((closest.peak_bytes, any.peak_bytes));
+    }
+    assert_eq!(peaks[0], peaks[1], "the scratch grew with the batch");
+}
+
 /// Packets of one ray: `OriginGrids { side: 1 }` and a 1×N image.
 #[test]
 fn packets_of_one_ray() {

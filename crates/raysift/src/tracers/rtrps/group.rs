@@ -193,12 +193,13 @@ impl Scratch {
             &mut self.gx,
             &mut self.gy,
             &mut self.gz,
-            &mut self.ix,
-            &mut self.iy,
-            &mut self.iz,
         ] {
             v.clear();
             v.resize(n, 0.0);
+        }
+        for v in [&mut self.ix, &mut self.iy, &mut self.iz] {
+            v.clear();
+            v.resize(if inverse { n } else { 0 }, 0.0);
         }
         let mut dlow = f32::INFINITY;
         for i in 0..g.rows {
