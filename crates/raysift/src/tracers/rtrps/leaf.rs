@@ -37,17 +37,6 @@ impl Walk<'_> {
             cols |= 1 << s.cols.order[bits.trailing_zeros() as usize];
             bits &= bits - 1;
         }
-        // The per-ray check (`ray_check`): a reproduced ray whose line passes farther from the
-        // leaf's centre than its radius cannot report a hit there. In the grid frame every ray
-        // leaves the origin with unit direction `g`; the frame is orthonormal to a few 1e-7 and
-        // the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5 relative
-        // of the centre's distance and of the radius (which also covers the rounding of
-        // `|c × g|²` in any order of evaluation).
-        let check = self.cfg.ray_check.then(|| {
-            let c = f.apply(tree.leaf_c[l]);
-            let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
-            (c, r * r)
-        });
         // The edge cull (`edge_cull`): a leaf that would reproduce many rays is first tested
         // against the group's whole cone of directions; when the shared test provably refuses
         // every ray of the cone for each of its triangles, nothing is reproduced.
@@ -65,6 +54,17 @@ impl Walk<'_> {
                 return;
             }
         }
+        // The per-ray check (`ray_check`): a reproduced ray whose line passes farther from the
+        // leaf's centre than its radius cannot report a hit there. In the grid frame every ray
+        // leaves the origin with unit direction `g`; the frame is orthonormal to a few 1e-7 and
+        // the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5 relative
+        // of the centre's distance and of the radius (which also covers the rounding of
+        // `|c × g|²` in any order of evaluation).
+        let check = self.cfg.ray_check.then(|| {
+            let c = f.apply(tree.leaf_c[l]);
+            let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
+            (c, r * r)
+        });
         s.tris.clear();
         let leaf = Leaf {
             rm,
