@@ -274,9 +274,10 @@ fn measure(f: impl FnOnce()) -> usize {
 }
 
 /// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits),
-/// plus the kept upper levels of the shared splits when its rays share them (`4·T` and
-/// `64·(4·T/257 + 1)`), whatever the scene's shape, the rays and the options; a second call
-/// nothing; `bytes()` reports the sum.
+/// plus, when its rays start from the kept levels (box splits: shared rays and handed-over
+/// bundles alike), those levels (`4·T` and `64·(4·T/(top_leaf + 1) + 1)`) and their build's
+/// sort keys (`8·T`, freed), whatever the scene's shape, the rays and the options; a second
+/// call nothing; `bytes()` reports what is held.
 #[test]
 fn memory_is_a_deterministic_linear_function() {
     let _g = serial();
@@ -333,23 +334,24 @@ fn memory_is_a_deterministic_linear_function() {
                 } else {
                     84
                 };
-                // The first call that shares splits keeps their upper levels (`top_leaf` 256):
-                // the triangle order and at most 4·T/257 + 1 nodes of 64 B.
-                let top = if built > 0 {
-                    assert!(built <= 4 * t / 257 + 1, "{built} nodes");
-                    4 * t + 64 * (4 * t / 257 + 1)
+                // The first call that walks the kept levels makes them (`top_leaf` 8): the
+                // triangle order and at most 4·T/9 + 1 nodes of 64 B, held; the sort keys, freed.
+                let nodes = 4 * t / 9 + 1;
+                let (top, keys) = if built > 0 {
+                    assert!(built <= nodes, "{built} nodes");
+                    (4 * t + 64 * nodes, 8 * t)
                 } else {
-                    0
+                    (0, 0)
                 };
                 assert_eq!(
                     built > 0,
-                    kv == [("cull", "cone")],
-                    "{kv:?}: random rays share"
+                    !kv.contains(&("spatial", "false")),
+                    "{kv:?}: box splits walk the kept levels"
                 );
                 assert_eq!(prepare, 24 * t, "{kv:?}");
                 assert_eq!(
                     first,
-                    4 * t * tasks + per_ray * r + top,
+                    4 * t * tasks + per_ray * r + top + keys,
                     "{kv:?} tasks {tasks}"
                 );
                 assert_eq!(again, 0, "{kv:?}");

@@ -11,6 +11,7 @@ pub mod cone_triangle;
 pub mod conebox;
 pub mod lanes;
 pub mod light_space;
+pub mod morton;
 pub mod projection;
 pub mod ray5d;
 pub mod ray_cone;

@@ -41,6 +41,7 @@
 //! node count (fewer than P for P > 1) depends only on P, so its buffers, sized at the build,
 //! never grow.
 
+use crate::geom::morton::spread10;
 use crate::geom::Aabb;
 use crate::scene::{Change, Scene};
 use glam::{Affine3A, DMat3, DVec3, Vec3};
@@ -180,15 +181,6 @@ pub struct Updated {
     pub refit_leaves: usize,
 }
 
-fn morton10(x: u32) -> u64 {
-    let mut x = (x & 0x3ff) as u64;
-    x = (x | (x << 16)) & 0x0300_00ff;
-    x = (x | (x << 8)) & 0x0300_f00f;
-    x = (x | (x << 4)) & 0x030c_30c3;
-    x = (x | (x << 2)) & 0x0924_9249;
-    x
-}
-
 /// Bounding sphere (f64) of a leaf's triangles, as the module doc states.
 fn leaf_sphere(tris: impl Iterator<Item = [Vec3; 3]> + Clone, centre: Centre) -> (Vec3, f32) {
     let mut lo = DVec3::splat(f64::INFINITY);
@@ -275,9 +267,9 @@ impl SphereTree {
                     let [a, bb, c] = local(f);
                     let q = (((a + bb + c) / 3.0 - b.min) / ext * 1023.0)
                         .clamp(Vec3::ZERO, Vec3::splat(1023.0));
-                    let k = morton10(q.x as u32)
-                        | (morton10(q.y as u32) << 1)
-                        | (morton10(q.z as u32) << 2);
+                    let k = spread10(q.x as u32)
+                        | (spread10(q.y as u32) << 1)
+                        | (spread10(q.z as u32) << 2);
                     (k, f as u32)
                 })
                 .collect();

@@ -115,13 +115,7 @@ pub(super) fn morton_order(
     bounds: &Aabb,
     huge: bool,
 ) -> Vec<u64> {
-    fn spread(x: u32) -> u64 {
-        let mut x = (x & 0x3ff) as u64;
-        x = (x | x << 16) & 0x0300_00ff;
-        x = (x | x << 8) & 0x0300_f00f;
-        x = (x | x << 4) & 0x030c_30c3;
-        (x | x << 2) & 0x0924_9249
-    }
+    use crate::geom::morton::spread10 as spread;
     let scale = Vec3::splat(1023.0) / bounds.extent().max(Vec3::splat(f32::MIN_POSITIVE));
     reserve_exact_huge(&mut v, range.len(), huge);
     v.extend(range.clone().enumerate().map(|(k, i)| {

@@ -89,9 +89,16 @@ pub struct Config {
     /// triangles, whose leaves test every ray that reaches them. Default 8.
     pub shared_leaf: usize,
     /// With `space=box`: the upper levels of the shared splits, down to nodes of this many
-    /// triangles, are made at `prepare` and kept between calls (they depend on the triangles
-    /// only); 0 makes every split per call. Default 256.
+    /// triangles, are made by the first call after a `prepare` and kept between calls (they
+    /// depend on the triangles only); 0 makes every split per call. Default 8 (`shared_leaf`'s: every shared split is
+    /// kept; 256, the earlier default, against 8: BENCHMARKS.md § "dacrt5d: bundles through the
+    /// kept levels").
     pub top_leaf: usize,
+    /// With `space=box` and kept levels: a handed-over bundle walks them too, down to the
+    /// first kept node holding at most `spatial_ratio` times its rays' count of triangles (or a
+    /// kept leaf), each child with its rays clipped to the child's box, and starts its 5D
+    /// recursion there; false starts it on every triangle. Default true.
+    pub kept_bundles: bool,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -115,7 +122,8 @@ impl Default for Config {
             leaf_tris: 32,
             hand_over: 0.25,
             shared_leaf: 8,
-            top_leaf: 256,
+            top_leaf: 8,
+            kept_bundles: true,
             max_depth: 64,
             tasks: 0,
         }
@@ -136,6 +144,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
     OptionDoc { key: "hand_over", doc: "space=box: at the root, bundles whose origins' box is at most this fraction of the scene's start their own 5D recursion; the rest share box splits" },
     OptionDoc { key: "top_leaf", doc: "space=box: shared splits above nodes of this many triangles are made at prepare and kept (0: none)" },
+    OptionDoc { key: "kept_bundles", doc: "space=box: handed-over bundles walk the kept levels (children's rays clipped) before their 5D recursion; false: it starts on every triangle" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
@@ -218,6 +227,19 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "every bundle on its own (hand-over at the root)",
         opts: &[("hand_over", "1e30"), ("tasks", "3")],
+    },
+    Preset {
+        name: "every bundle on its own through kept levels of 2, spatial everywhere",
+        opts: &[
+            ("hand_over", "1e30"),
+            ("top_leaf", "2"),
+            ("spatial_ratio", "0"),
+            ("tasks", "2"),
+        ],
+    },
+    Preset {
+        name: "bundles start on every triangle (no kept levels for them)",
+        opts: &[("kept_bundles", "false"), ("tasks", "2")],
     },
     Preset {
         name: "box splits down to one triangle",

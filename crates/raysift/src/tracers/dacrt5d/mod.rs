@@ -70,10 +70,16 @@
 //!     by the leaves (an on-the-fly BVH, as Mora's DACRT with object splits). Without it each
 //!     bundle made the same splits of the same triangles (six times the work), and before
 //!     packing a clip read eight of the batch's scattered arrays. The shared splits depend on
-//!     the triangles only, so their upper levels, down to nodes of `top_leaf` (256) triangles,
-//!     are kept from the first call that shares splits after each `prepare` (`top.rs`): small
-//!     batches then pay for the nodes their rays reach, not for a pass over every triangle per
-//!     level. BENCHMARKS.md § "dacrt5d: box splits";
+//!     the triangles only, so their upper levels, down to nodes of `top_leaf` (8) triangles,
+//!     are made by the first call after each `prepare` and kept (`top.rs`: Morton cells, made
+//!     in a sort): small batches then pay for the nodes their rays reach, not for a pass over
+//!     every triangle per level. The handed-over bundles walk them too (`kept_bundles`,
+//!     `Task::bundle_top`): down to the first kept node holding at most `spatial_ratio` times
+//!     as many triangles as the rays that reach it, each child taking the rays clipped to its
+//!     box, where the bundle's 5D recursion starts; before, every bundle's root culled every
+//!     triangle and its box splits made a pass over all of them per level (the dragon's 512²
+//!     camera: 273 against 128 ms). BENCHMARKS.md § "dacrt5d: box splits" and § "dacrt5d:
+//!     bundles through the kept levels";
 //!   - `major` (the first hybrid; `Task::spatial_split`): a cut along the bundle's major axis at
 //!     the mean of the triangles' near ends: the near triangles (near end at or before the
 //!     plane) are traced first with all the rays, then the rays whose best hit (or `tmax`) lies
@@ -96,9 +102,10 @@
 //! (one 48-byte record per ray: origin, direction, `tmin`, `t0`, slopes, id, bundle) plus, with
 //! box splits (`spatial`, `space=box`, the default), `36·R` (a 32-byte packed record and an id
 //! for the shared splits), kept by the tracer for the next call (a second call of the same size
-//! allocates nothing). The first call that shares splits after a `prepare` also keeps their
+//! allocates nothing). The first call with box splits after a `prepare` also keeps their
 //! upper levels: `4·T` (the triangle order) and at most `64·(4·T/(top_leaf + 1) + 1)` bytes of
-//! nodes. So `a = 24 + 4K` bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84`
+//! nodes (at most 28.4 B per triangle with `top_leaf` 8; 25 on the dragon), and frees the
+//! `8·T` of its build's sort keys. So `a = 24 + 4K` bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84`
 //! per ray (48 without box splits); `tests/dacrt5d.rs` checks it with a counting allocator.
 
 mod config;
@@ -138,6 +145,8 @@ pub struct Dacrt5d {
     /// `[lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]` per triangle; degenerate or non-finite triangles
     /// (never hit) get `lo = +inf, hi = -inf` and never enter a root list.
     boxes: Vec<[f32; 6]>,
+    /// How many triangles are live (their box is not empty).
+    live: usize,
     /// The largest coordinate magnitude and extent of the scene's live triangles.
     scale: f32,
     extent: f32,
@@ -156,6 +165,7 @@ impl Dacrt5d {
             cfg,
             stamp: Stamp::default(),
             boxes: Vec::new(),
+            live: 0,
             scale: 0.0,
             extent: 0.0,
             bounds: [[0.0; 3]; 2],
@@ -194,6 +204,8 @@ crate::counters! {
         box_splits,
         /// Box splits above the bundles (the rays of every bundle together).
         top_splits,
+        /// Kept nodes a handed-over bundle went through to its children (`kept_bundles`).
+        kept_descents,
         /// Nodes of the kept upper levels this call made (`top.rs`; the first call after a
         /// `prepare` that shares splits makes them).
         top_built,
@@ -286,6 +298,7 @@ impl Tracer for Dacrt5d {
                 ]
             });
         }
+        self.live = self.boxes.iter().filter(|b| b[0] <= b[3]).count();
         self.scale = scale;
         self.extent = (0..3).map(|k| hi_all[k] - lo_all[k]).fold(0.0f32, f32::max);
         self.bounds = [lo_all, hi_all];

@@ -92,8 +92,13 @@ impl Dacrt5d {
             };
             next[g] += 1;
         }
-        task.tri_idx.extend(live_ids(&self.boxes));
-        let nlive = task.tri_idx.len();
+        let nlive = self.live;
+        // Every bounded ray starts from the kept levels, which load their nodes' triangles:
+        // the list of every live triangle (a pass over all boxes) only for the other ways.
+        let from_kept = shared && self.cfg.top_leaf > 0 && self.cfg.kept_bundles;
+        if !from_kept || start[UNBOUNDED] < len {
+            task.tri_idx.extend(live_ids(&self.boxes));
+        }
         if nlive > 0 {
             // The unbounded group first: below the kept levels the list holds a kept node's
             // triangles only (`space.rs`, `Task::shared_top`).

@@ -34,8 +34,6 @@ pub(super) type Bounds = [Option<(Bound5, f32)>; BUNDLES];
 
 /// A split of a node's triangles into two disjoint sets (the first at the front of the list).
 pub(super) struct TriSplit {
-    /// The split axis.
-    pub(super) axis: usize,
     /// How many triangles the first set holds.
     pub(super) n1: usize,
     pub(super) first: SetBounds,
@@ -79,7 +77,7 @@ impl SetBounds {
     }
 }
 
-impl<const ANY: bool> Task<'_, ANY> {
+impl<'a, const ANY: bool> Task<'a, ANY> {
     /// The hybrid's box split inside bundle `g`: the triangles are split at the middle of their
     /// centroids' longest extent into two disjoint sets, the one the rays meet first (by the
     /// bundle's sign on that axis, or the sign of the middle slope) taken first; each child
@@ -148,7 +146,8 @@ impl<const ANY: bool> Task<'_, ANY> {
                 hand[g] = small;
             }
         }
-        let start = self.hand_over(&hand, &bounds, r0, r1, nt, 0);
+        let kept = self.kept();
+        let start = self.hand_over(&hand, &bounds, r0, r1, nt, kept);
         if start == r1 {
             return;
         }
@@ -163,21 +162,85 @@ impl<const ANY: bool> Task<'_, ANY> {
             self.pid.push(p as u32);
         }
         let n = self.pk.len();
-        if self.cfg.top_leaf == 0 {
-            return self.shared(0, n, nt, None, 0, up);
+        match kept {
+            Some(top) => self.shared_top(top, 0, 0, n, up),
+            None => self.shared(0, n, nt, None, 0, up),
         }
-        let (boxes, cfg) = (self.boxes, self.cfg);
+    }
+
+    /// The kept levels (`top.rs`), made by the first call that asks after a `prepare`; `None`
+    /// without them (`top_leaf = 0`, or no live triangle).
+    fn kept(&mut self) -> Option<&'a Top> {
+        if self.cfg.top_leaf == 0 {
+            return None;
+        }
+        let (boxes, cfg, cell) = (self.boxes, self.cfg, self.top);
         let mut built = 0;
-        let top = self.top.get_or_init(|| {
+        let top = cell.get_or_init(|| {
             let top = Top::new(boxes, cfg.top_leaf, cfg.max_depth);
             built = top.nodes.len() as u64;
             top
         });
         self.st.top_built += built;
-        if top.nodes.is_empty() {
-            return self.shared(0, n, nt, None, 0, up);
+        (!top.nodes.is_empty()).then_some(top)
+    }
+
+    /// Kept node `i`'s triangles as the whole list (which then no longer holds every triangle:
+    /// the ways that need them all come first); returns their count.
+    fn load_kept(&mut self, top: &Top, i: usize) -> usize {
+        let n = top.nodes[i];
+        let (start, len) = (n.start as usize, n.len as usize);
+        self.tri_idx.clear();
+        self.tri_idx.extend_from_slice(&top.order[start..start + len]);
+        len
+    }
+
+    /// A handed-over bundle `g` in kept node `i` (`kept_bundles`), its rays `recs[r0..r1]`
+    /// bound by `(b, s)`: where the node is a kept leaf or holds at most `spatial_ratio` times
+    /// as many triangles as rays, its triangles (copied into the list's prefix) start the
+    /// bundle's recursion; otherwise each child, near one first as in [`Task::box_split`],
+    /// takes the rays clipped to its box. The kept splits are box splits made once: the same
+    /// exactness argument (module doc), without a pass over the node's triangles per call.
+    #[allow(clippy::too_many_arguments)]
+    fn bundle_top(
+        &mut self,
+        top: &Top,
+        i: usize,
+        g: usize,
+        r0: usize,
+        r1: usize,
+        (b, s): (Bound5, f32),
+        depth: u32,
+    ) {
+        let n = top.nodes[i];
+        let len = n.len as usize;
+        if n.kids == 0 || len as f32 <= self.cfg.spatial_ratio * (r1 - r0) as f32 {
+            self.load_kept(top, i);
+            return self.node(g, r0, r1, len, depth, Given::Bound(b, s));
         }
-        self.shared_top(top, 0, 0, n, up);
+        self.st.kept_descents += 1;
+        let (k, sign, i_axis, _) = axes(g);
+        let a = n.axis as usize;
+        let low_first = if a == k {
+            sign > 0.0
+        } else {
+            let d = if a == i_axis { 3 } else { 4 };
+            b.lo[d] + b.hi[d] >= 0.0
+        };
+        let low = n.kids as usize;
+        let order = if low_first {
+            [low, low + 1]
+        } else {
+            [low + 1, low]
+        };
+        for c in order {
+            let set = top.nodes[c].set;
+            // Clipped from the batch's rays: the first child's clips never reach the second.
+            let kc = self.clip_rays(r0, r1, set.lo, set.hi);
+            if let Some(bc) = self.bound_rays(r0, kc)[g] {
+                self.bundle_top(top, c, g, r0, kc, bc, depth + 1);
+            }
+        }
     }
 
     /// The kept levels (`top.rs`): node `i` of them with packed rays `pk[a..b]`; below a kept
@@ -187,8 +250,7 @@ impl<const ANY: bool> Task<'_, ANY> {
     fn shared_top(&mut self, top: &Top, i: usize, a: usize, b: usize, up: [bool; 3]) {
         let n = top.nodes[i];
         if n.kids == 0 {
-            let (s, len) = (n.start as usize, n.len as usize);
-            self.tri_idx[..len].copy_from_slice(&top.order[s..s + len]);
+            let len = self.load_kept(top, i);
             return self.shared(a, b, len, Some((n.set.clo, n.set.chi)), 0, up);
         }
         self.st.top_splits += 1;
@@ -283,8 +345,9 @@ impl<const ANY: bool> Task<'_, ANY> {
     }
 
     /// Starts the recursion of each bundle `g` with `hand[g]` on its rays of `recs[r0..r1]`
-    /// (moved to the front, bundle by bundle) and the triangles `tri_idx[..nt]`; returns where
-    /// the other rays start.
+    /// (moved to the front, bundle by bundle): through the kept levels when there are some and
+    /// `kept_bundles` ([`Task::bundle_top`]), else on the triangles `tri_idx[..nt]`; returns
+    /// where the other rays start.
     fn hand_over(
         &mut self,
         hand: &[bool; BUNDLES],
@@ -292,7 +355,7 @@ impl<const ANY: bool> Task<'_, ANY> {
         r0: usize,
         r1: usize,
         nt: usize,
-        depth: u32,
+        kept: Option<&Top>,
     ) -> usize {
         let mut start = r0;
         for g in 0..BUNDLES {
@@ -306,7 +369,10 @@ impl<const ANY: bool> Task<'_, ANY> {
                 recs.swap(q, p);
                 q += here as usize;
             }
-            self.node(g, start, start + q, nt, depth, Given::Bound(b, s));
+            match kept.filter(|_| self.cfg.kept_bundles) {
+                Some(top) => self.bundle_top(top, 0, g, start, start + q, (b, s), 0),
+                None => self.node(g, start, start + q, nt, 0, Given::Bound(b, s)),
+            }
             start += q;
         }
         start
@@ -418,7 +484,8 @@ impl<const ANY: bool> Task<'_, ANY> {
 /// are made too, for the children's splits (the bundles' splits, whose children cull first, do
 /// without: making them anyway cost the dragon's camera rays 14% in one A/B). `None` when the
 /// centroids do not spread or one side is empty. The sets depend on the triangles only (`up`
-/// only says which is first), so the kept top levels ([`super::top`]) make the same splits.
+/// only says which is first). (The kept levels, [`super::top`], cut at Morton cells instead:
+/// made once, in a sort rather than a pass per level.)
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(ext > 0)`: NaN extents do not split
 pub(super) fn split_set<const CB: bool>(
     idx: &mut [u32],
@@ -468,7 +535,6 @@ pub(super) fn split_set<const CB: bool>(
         n1 += first as usize;
     }
     (n1 > 0 && n1 < nt).then_some(TriSplit {
-        axis: a,
         n1,
         first: first_set,
         second: second_set,
