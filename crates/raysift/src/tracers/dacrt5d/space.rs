@@ -196,11 +196,13 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     }
 
     /// A handed-over bundle `g` in kept node `i` (`kept_bundles`), its rays `recs[r0..r1]`
-    /// bound by `(b, s)`: where the node is a kept leaf or holds at most `spatial_ratio` times
-    /// as many triangles as rays, its triangles (copied into the list's prefix) start the
-    /// bundle's recursion; otherwise each child, near one first as in [`Task::box_split`],
-    /// takes the rays clipped to its box. The kept splits are box splits made once: the same
-    /// exactness argument (module doc), without a pass over the node's triangles per call.
+    /// (bound by `bound` at the root; below, clipped to the node's box): where the node is a
+    /// kept leaf or holds at most `spatial_ratio` times as many triangles as rays, its
+    /// triangles (copied into the list's prefix) start the bundle's recursion, bound from the
+    /// rays' entries into its box; otherwise each child, near one first as in
+    /// [`Task::box_split`] (by `order_by`'s slopes), takes the rays clipped to its box. The kept
+    /// splits are box splits made once: the same exactness argument (module doc), without a
+    /// pass over the node's triangles per call.
     #[allow(clippy::too_many_arguments)]
     fn bundle_top(
         &mut self,
@@ -209,12 +211,17 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         g: usize,
         r0: usize,
         r1: usize,
-        (b, s): (Bound5, f32),
+        bound: Option<(Bound5, f32)>,
+        order_by: &Bound5,
         depth: u32,
     ) {
         let n = top.nodes[i];
         let len = n.len as usize;
         if n.kids == 0 || len as f32 <= self.cfg.spatial_ratio * (r1 - r0) as f32 {
+            // The rays' bound from their entries into this node's box (the last clip).
+            let Some((b, s)) = bound.or_else(|| self.bound_rays(r0, r1)[g]) else {
+                return;
+            };
             self.load_kept(top, i);
             return self.node(g, r0, r1, len, depth, Given::Bound(b, s));
         }
@@ -225,7 +232,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             sign > 0.0
         } else {
             let d = if a == i_axis { 3 } else { 4 };
-            b.lo[d] + b.hi[d] >= 0.0
+            order_by.lo[d] + order_by.hi[d] >= 0.0
         };
         let low = n.kids as usize;
         let order = if low_first {
@@ -236,9 +243,11 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         for c in order {
             let set = top.nodes[c].set;
             // Clipped from the batch's rays: the first child's clips never reach the second.
+            // Their bound is made where the recursion starts (the order below uses the slopes
+            // of an ancestor's: only the order, never an answer, depends on it).
             let kc = self.clip_rays(r0, r1, set.lo, set.hi);
-            if let Some(bc) = self.bound_rays(r0, kc)[g] {
-                self.bundle_top(top, c, g, r0, kc, bc, depth + 1);
+            if kc > r0 {
+                self.bundle_top(top, c, g, r0, kc, None, order_by, depth + 1);
             }
         }
     }
@@ -370,7 +379,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
                 q += here as usize;
             }
             match kept.filter(|_| self.cfg.kept_bundles) {
-                Some(top) => self.bundle_top(top, 0, g, start, start + q, (b, s), 0),
+                Some(top) => self.bundle_top(top, 0, g, start, start + q, Some((b, s)), &b, 0),
                 None => self.node(g, start, start + q, nt, 0, Given::Bound(b, s)),
             }
             start += q;
