@@ -43,7 +43,10 @@ mod tests {
         assert_eq!(code30(Vec3::splat(f32::NAN), lo, s), 0);
         // Order along one axis is kept.
         let xs = [0.0, 0.1, 0.2, 0.7, 0.99];
-        let c: Vec<u64> = xs.iter().map(|&x| code30(Vec3::new(x, 0.3, 0.6), lo, s)).collect();
+        let c: Vec<u64> = xs
+            .iter()
+            .map(|&x| code30(Vec3::new(x, 0.3, 0.6), lo, s))
+            .collect();
         assert!(c.windows(2).all(|w| w[0] < w[1]), "{c:?}");
     }
 }

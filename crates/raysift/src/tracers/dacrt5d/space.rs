@@ -191,7 +191,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let n = top.nodes[i];
         let (start, len) = (n.start as usize, n.len as usize);
         self.tri_idx.clear();
-        self.tri_idx.extend_from_slice(&top.order[start..start + len]);
+        self.tri_idx
+            .extend_from_slice(&top.order[start..start + len]);
         len
     }
 
@@ -407,11 +408,21 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
             if p + CLIP_PREFETCH < r1 {
                 self.prefetch_best(self.recs[p + CLIP_PREFETCH].id as usize);
             }
-            let best = self.best(self.recs[p].id as usize);
-            let r = &mut self.recs[p];
-            let t0 = clip(Vec3::from(r.o), Vec3::from(r.d), lo, hi, r.tmin, best);
+            // The record is written whole, by the swap: a 4-byte store of `t0` into it before the
+            // swap's 16-byte loads stalled them (no store forwarding; the dragon's 512² camera,
+            // 140 against 133 ms).
+            let mut r = self.recs[p];
+            let t0 = clip(
+                Vec3::from(r.o),
+                Vec3::from(r.d),
+                lo,
+                hi,
+                r.tmin,
+                self.best(r.id as usize),
+            );
             r.t0 = t0.unwrap_or(0.0);
-            self.recs.swap(q, p);
+            self.recs[p] = self.recs[q];
+            self.recs[q] = r;
             q += t0.is_some() as usize;
         }
         self.st.clipped_out += (r1 - q) as u64;

@@ -110,13 +110,18 @@ impl Top {
             let n = self.nodes[i];
             let set = if n.kids == 0 {
                 let (s, e) = (n.start as usize, (n.start + n.len) as usize);
-                self.order[s..e].iter().fold(SetBounds::default(), |set, &t| {
-                    let b = &boxes[t as usize];
-                    let (lo, hi) = (Vec3::new(b[0], b[1], b[2]), Vec3::new(b[3], b[4], b[5]));
-                    set.grown::<true>(lo, hi, lo + hi)
-                })
+                self.order[s..e]
+                    .iter()
+                    .fold(SetBounds::default(), |set, &t| {
+                        let b = &boxes[t as usize];
+                        let (lo, hi) = (Vec3::new(b[0], b[1], b[2]), Vec3::new(b[3], b[4], b[5]));
+                        set.grown::<true>(lo, hi, lo + hi)
+                    })
             } else {
-                let (a, b) = (self.nodes[n.kids as usize].set, self.nodes[n.kids as usize + 1].set);
+                let (a, b) = (
+                    self.nodes[n.kids as usize].set,
+                    self.nodes[n.kids as usize + 1].set,
+                );
                 SetBounds {
                     lo: a.lo.min(b.lo),
                     hi: a.hi.max(b.hi),
