@@ -242,6 +242,65 @@ fn options_show_in_the_counters() {
     assert_ne!(fixed.work.get("leaves"), f.work.get("leaves"));
 }
 
+/// Handed-over bundles (rays from one point) walk the kept levels (`kept_bundles`): their roots
+/// no longer cull every triangle, so a camera's frustum tests drop to a fraction; answers stay
+/// `naive`'s (`stats` checks them) with and without.
+#[test]
+fn bundles_walk_the_kept_levels() {
+    let s = procedural::icosphere(20_480);
+    let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(32, 32);
+    let on = stats(&s, &cam, &[]);
+    let off = stats(&s, &cam, &[("kept_bundles", "false")]);
+    assert!(on.work.get("kept_descents") > 0, "{:?}", on.work);
+    assert_eq!(off.work.get("kept_descents"), 0);
+    // The kept levels are made by the first call either way (the rays of no bundle share them
+    // here, only the handed-over ones walk them).
+    assert!(on.work.get("top_built") > 0 && off.work.get("top_built") > 0);
+    assert!(
+        4 * on.work.get("frustum_tests") < off.work.get("frustum_tests"),
+        "on {:?}\noff {:?}",
+        on.work,
+        off.work
+    );
+    // Without box splits there are no kept levels to walk.
+    let plain = stats(&s, &cam, &[("spatial", "false")]);
+    assert_eq!((plain.work.get("kept_descents"), plain.work.get("top_built")), (0, 0));
+}
+
+/// Kept levels over many triangles with one Morton code (a stack of copies, and copies of one
+/// triangle moved by subnormal steps): the stack is one kept leaf, far larger than `top_leaf`
+/// (a build that kept splitting it would find no differing bit), split per call below; every
+/// preset equals `naive` on rays through it, camera and random.
+#[test]
+fn one_morton_cell_holding_many_triangles() {
+    let mut pos = Vec::new();
+    let base = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    for k in 0..300 {
+        let z = if k % 2 == 0 { 0.0 } else { f32::from_bits(k as u32) };
+        pos.extend(base.map(|v| v + Vec3::new(0.0, 0.0, z)));
+    }
+    // Scattered triangles, so the stack is one cell of a larger grid.
+    let soup = procedural::soup(400, 7);
+    for t in 0..soup.len() {
+        pos.extend(soup.triangles().get(t).map(|v| v * 4.0 - Vec3::splat(2.0)));
+    }
+    let idx = (0..pos.len() as u32 / 3)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    let s = Scene::from_meshes("stack", vec![raysift::scene::Mesh::new("m", pos, idx)]).unwrap();
+    let cam = Camera::framing(&s.bounds(), 40.0, 1.0).rays(24, 24);
+    check(&s, &cam);
+    let mut rays = random_in_box(&s.bounds(), 500, 3);
+    for i in 0..rays.len() {
+        // Aim every other ray at the stack.
+        if i % 2 == 0 {
+            let d = Vec3::new(0.3, 0.3, 0.0) - rays.origin(i);
+            (rays.dx[i], rays.dy[i], rays.dz[i]) = (d.x, d.y, d.z);
+        }
+    }
+    check(&s, &rays);
+}
+
 // ---------------------------------------------------------------- memory
 
 struct Counting;
