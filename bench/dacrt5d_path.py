@@ -4,6 +4,7 @@ on the same rays, and the frame (one build or prepare + every depth's trace).
 
     python3 bench/dacrt5d_path.py [--scenes bun_zipper.ply,sponza.obj.gz,dragon_vrip.ply.gz]
         [--size 512] [--bounces 7] [--rounds 3] [--tracers dacrt5d,dacrt,bvh]
+        [--embree low,medium] [--old OTHER_RAYSIFT (contenders 'old:TRACER' run on it)]
 
 Each scene is rendered once (`raysift render --integrator path --spp 1`, the renderer of
 BENCHMARKS.md's Fig. 10, Sponza from bench/common.py's inside camera) with `--record-rays`; the
@@ -48,14 +49,19 @@ def main():
     ap.add_argument("--bounces", type=int, default=7)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--tracers", default="dacrt5d,dacrt,bvh")
+    ap.add_argument("--old", default=None,
+                    help="another raysift binary: contenders written 'old:TRACER' run on it")
+    ap.add_argument("--embree", default="low,medium",
+                    help="Embree builds to run (comma-separated; empty for none)")
     ap.add_argument("--raysift", default=os.path.join(ROOT, "target", "release", "raysift"))
     ap.add_argument("--peer", default=os.path.join(ROOT, "bench", "target", "release", "embree-peer"))
     a = ap.parse_args()
     tracers = a.tracers.split(",")
-    embrees = [("embree low", "low"), ("embree medium", "medium")]
+    embrees = [(f"embree {q}", q) for q in filter(None, a.embree.split(","))]
     work = tempfile.mkdtemp(prefix="dacrt5d-path-")
     print(f"`python3 bench/dacrt5d_path.py --scenes {a.scenes} --size {a.size} --bounces {a.bounces} "
-          f"--rounds {a.rounds} --tracers {a.tracers}`\n")
+          f"--rounds {a.rounds} --tracers {a.tracers} --embree {a.embree}"
+          + (f" --old {a.old}" if a.old else "") + "`\n")
     for sc in a.scenes.split(","):
         path = os.path.join(a.scenes_dir, sc)
         d = os.path.join(work, common.slug(sc))
@@ -88,10 +94,11 @@ def main():
                     # between calls counts as it would in a frame); its per-depth times. The
                     # renderer is deterministic and every tracer's answers are the same, so its
                     # rays are the recorded ones (checked: the rays per depth).
-                    j = run([a.raysift, "render", path, "--integrator", "path", "--spp", "1", "--bounces",
+                    exe, spec = (a.old, c[4:]) if c.startswith("old:") else (a.raysift, c)
+                    j = run([exe, "render", path, "--integrator", "path", "--spp", "1", "--bounces",
                              str(a.bounces), "--width", str(a.size), "--height", str(a.size), "--threads", "1",
                              "--pin", "--quiet", "--json", "--out", d + f"-{common.slug(c)}.png", *cam,
-                             *common.tracer_args(c)])
+                             *common.tracer_args(spec)])
                     per = j["per_bounce"]
                     assert [p["rays"] for p in per] == [len(w) for _, w, _ in depth_files], sc
                     for k, p in enumerate(per):
@@ -101,8 +108,8 @@ def main():
                         # Each depth's rays traced alone; answers bit for bit against the recording.
                         for k, (f, want, _) in enumerate(depth_files):
                             out = os.path.join(d, f"out-{k}.npy")
-                            run([a.raysift, "trace", path, "--rays", f, "--threads", "1", "--json",
-                                 *common.tracer_args(c), "--out", out])
+                            run([exe, "trace", path, "--rays", f, "--threads", "1", "--json",
+                                 *common.tracer_args(spec), "--out", out])
                             got = np.load(out)
                             bad[c] += not all(np.array_equal(got[x].view(np.uint32), want[x].view(np.uint32))
                                               for x in ("t", "prim", "u", "v"))

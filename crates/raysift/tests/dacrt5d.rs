@@ -264,7 +264,10 @@ fn bundles_walk_the_kept_levels() {
     );
     // Without box splits there are no kept levels to walk.
     let plain = stats(&s, &cam, &[("spatial", "false")]);
-    assert_eq!((plain.work.get("kept_descents"), plain.work.get("top_built")), (0, 0));
+    assert_eq!(
+        (plain.work.get("kept_descents"), plain.work.get("top_built")),
+        (0, 0)
+    );
 }
 
 /// Kept levels over many triangles with one Morton code (a stack of copies, and copies of one
@@ -274,9 +277,17 @@ fn bundles_walk_the_kept_levels() {
 #[test]
 fn one_morton_cell_holding_many_triangles() {
     let mut pos = Vec::new();
-    let base = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let base = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    ];
     for k in 0..300 {
-        let z = if k % 2 == 0 { 0.0 } else { f32::from_bits(k as u32) };
+        let z = if k % 2 == 0 {
+            0.0
+        } else {
+            f32::from_bits(k as u32)
+        };
         pos.extend(base.map(|v| v + Vec3::new(0.0, 0.0, z)));
     }
     // Scattered triangles, so the stack is one cell of a larger grid.

@@ -94,6 +94,10 @@ pub struct Config {
     /// kept; 256, the earlier default, against 8: BENCHMARKS.md § "dacrt5d: bundles through the
     /// kept levels").
     pub top_leaf: usize,
+    /// How the kept levels split: `morton` (a sort, then Morton cells) or `middle` (the
+    /// per-call splits' rule on 16-bit centroids: better splits, a dearer build). Default
+    /// morton.
+    pub top_split: super::TopSplit,
     /// With `space=box` and kept levels: a handed-over bundle walks them too, down to the
     /// first kept node holding at most `spatial_ratio` times its rays' count of triangles (or a
     /// kept leaf), each child with its rays clipped to the child's box, and starts its 5D
@@ -123,6 +127,7 @@ impl Default for Config {
             hand_over: 0.25,
             shared_leaf: 8,
             top_leaf: 8,
+            top_split: super::TopSplit::Morton,
             kept_bundles: true,
             max_depth: 64,
             tasks: 0,
@@ -145,6 +150,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "hand_over", doc: "space=box: at the root, bundles whose origins' box is at most this fraction of the scene's start their own 5D recursion; the rest share box splits" },
     OptionDoc { key: "top_leaf", doc: "space=box: shared splits above nodes of this many triangles are made at prepare and kept (0: none)" },
     OptionDoc { key: "kept_bundles", doc: "space=box: handed-over bundles walk the kept levels (children's rays clipped) before their 5D recursion; false: it starts on every triangle" },
+    OptionDoc { key: "top_split", doc: "space=box: kept levels split at the middle of the centroids' longest extent (middle) or at Morton cells (morton)" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
@@ -223,6 +229,10 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "kept levels down to 2 triangles, shared leaves of 1",
         opts: &[("top_leaf", "2"), ("shared_leaf", "1"), ("tasks", "2")],
+    },
+    Preset {
+        name: "kept levels at the centroids' middle, down to 2 triangles",
+        opts: &[("top_split", "middle"), ("top_leaf", "2"), ("tasks", "2")],
     },
     Preset {
         name: "every bundle on its own (hand-over at the root)",

@@ -115,6 +115,7 @@ mod space;
 mod top;
 
 pub use config::{Config, Cull, Space, Stop, OPTION_DOCS, PRESETS};
+pub use top::TopSplit;
 
 use crate::error::Result;
 use crate::mem::reserve_exact_huge;

@@ -177,7 +177,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let (boxes, cfg, cell) = (self.boxes, self.cfg, self.top);
         let mut built = 0;
         let top = cell.get_or_init(|| {
-            let top = Top::new(boxes, cfg.top_leaf, cfg.max_depth);
+            let top = Top::new(boxes, cfg.top_leaf, cfg.max_depth, cfg.top_split);
             built = top.nodes.len() as u64;
             top
         });

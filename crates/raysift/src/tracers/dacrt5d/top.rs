@@ -8,20 +8,27 @@
 //! (the shared rays, and since `kept_bundles` the handed-over bundles too) and splits per call
 //! below nodes of `top_leaf` triangles.
 //!
-//! They are made over the triangles' centroids in Morton order (`geom::morton`, 10 bits per
-//! axis over the live centroids' box): a node's range of the sorted codes splits where its
-//! highest differing bit changes (a cut at the middle of a grid cell's extent on that bit's
-//! axis, as a linear BVH builder makes it), down to nodes of at most `top_leaf` triangles or of
-//! one code; the boxes and centroid bounds are then made leaves first. A sort and a pass over
-//! the leaves replace a pass over every triangle per level: the per-call splits' rule (the
-//! middle of the centroids' extent, `space::split_set`) made over 11M item moves on the 871K
-//! dragon, 105–220 ms a frame. The splits below a kept leaf are made per call from its
-//! triangles and centroid bounds. The exactness argument is the box splits' (`space.rs`): each
-//! node's box is its triangles' union box and the two children's triangles are disjoint.
+//! Two ways to make them (`top_split`), both leaves first for the boxes and centroid bounds:
+//! - `morton` (default): the centroids in Morton order (`geom::morton`, 10 bits per axis over
+//!   the live centroids' box), one sort; a node's range of the sorted codes splits where its
+//!   highest differing bit changes (a cut at the middle of a grid cell on that bit's axis, as a
+//!   linear BVH builder makes it), down to nodes of at most `top_leaf` triangles or of one
+//!   code. A sort and a pass over the leaves instead of a pass per level: 55–85 ms on the 871K
+//!   dragon, where the per-call rule over ids took 105–220 ms (11M gathers of scattered boxes).
+//! - `middle`: the per-call splits' rule (the middle of the centroids' longest extent,
+//!   `space::split_set`) on centroids quantized to 16 bits, moving 12-byte items level by level
+//!   (each read and written whole). Better splits where Morton cells cut badly (Sponza's
+//!   bounces 0.91× the time), a dearer build (the dragon's frame 1.25×): BENCHMARKS.md
+//!   § "dacrt5d: bundles through the kept levels".
+//!
+//! The splits below a kept leaf are made per call from its triangles and centroid bounds. The
+//! exactness argument is the box splits' (`space.rs`): each node's box is its triangles' union
+//! box and the two children's triangles are disjoint.
 //!
 //! Memory (deterministic): the triangle order, `4·T`, and at most `4·T / (top_leaf + 1) + 1`
 //! nodes of 64 bytes (every inner node holds more than `top_leaf` triangles, and the deepest
-//! inner nodes are disjoint), reserved exactly; while building, the sort keys (`8·T`), freed.
+//! inner nodes are disjoint), reserved exactly; while building, the sort keys (`8·T`, `morton`)
+//! or the items (`12·T`, `middle`), freed.
 
 use super::space::SetBounds;
 use crate::geom::morton;
@@ -59,58 +66,101 @@ pub(super) fn live_ids(boxes: &[[f32; 6]]) -> impl Iterator<Item = u32> + '_ {
         .map(|(t, _)| t as u32)
 }
 
+/// How the kept levels split a node (`Config::top_split`).
+#[derive(Clone, Copy, Debug, Default, serde::Deserialize, serde::Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum TopSplit {
+    /// The middle of the node's centroid bounds on their longest axis (the per-call splits'
+    /// rule), centroids quantized to 16 bits per axis, items moved level by level.
+    Middle,
+    /// Morton order: one sort, then cuts where the highest differing bit changes.
+    #[default]
+    Morton,
+}
+
+/// A triangle as [`TopSplit::Middle`] moves it: its centroid quantized, its id.
+#[derive(Clone, Copy)]
+struct Item {
+    q: [u16; 3],
+    id: u32,
+}
+
+/// Centroids doubled (`lo + hi`), as the per-call splits take them.
+#[inline(always)]
+fn centroid(b: &[f32; 6]) -> Vec3 {
+    Vec3::new(b[0] + b[3], b[1] + b[4], b[2] + b[5])
+}
+
+/// The scale that maps an extent onto `0..=65535` (flat axes: every centroid at 0).
+fn quant_scale(extent: Vec3) -> Vec3 {
+    Vec3::splat(65535.0) / extent.max(Vec3::splat(f32::MIN_POSITIVE))
+}
+
+#[inline(always)]
+fn quantize(c: Vec3, lo: Vec3, scale: Vec3) -> [u16; 3] {
+    let q = ((c - lo) * scale).clamp(Vec3::ZERO, Vec3::splat(65535.0));
+    [q.x as u16, q.y as u16, q.z as u16]
+}
+
 impl Top {
     /// The levels over the live triangles (boxes with `lo <= hi`) down to nodes of at most
-    /// `leaf` triangles (or `max_depth`).
-    pub(super) fn new(boxes: &[[f32; 6]], leaf: usize, max_depth: u32) -> Self {
+    /// `leaf` triangles (or `max_depth`), split by `rule`.
+    pub(super) fn new(boxes: &[[f32; 6]], leaf: usize, max_depth: u32, rule: TopSplit) -> Self {
         let mut top = Self::default();
-        top.build(boxes, leaf, max_depth);
-        top
-    }
-
-    fn build(&mut self, boxes: &[[f32; 6]], leaf: usize, max_depth: u32) {
         let live = boxes.iter().filter(|b| b[0] <= b[3]).count();
         let cap = 4 * live / (leaf + 1) + 1;
-        if self.nodes.capacity() < cap {
-            self.nodes = Vec::with_capacity(cap);
-        }
-        self.nodes.clear();
-        reserve_exact_huge(&mut self.order, live, true);
-        self.order.clear();
+        top.nodes = Vec::with_capacity(cap);
+        reserve_exact_huge(&mut top.order, live, true);
         if live == 0 {
-            return;
+            return top;
         }
         // Centroids doubled (`lo + hi`), as the per-call splits take them.
-        let centroid = |b: &[f32; 6]| Vec3::new(b[0] + b[3], b[1] + b[4], b[2] + b[5]);
         let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for t in live_ids(boxes) {
             let c = centroid(&boxes[t as usize]);
             (clo, chi) = (clo.min(c), chi.max(c));
         }
-        let scale = morton::scale_for(chi - clo);
-        let mut keys: Vec<u64> = Vec::new();
-        reserve_exact_huge(&mut keys, live, true);
-        keys.extend(
-            live_ids(boxes)
-                .map(|t| morton::code30(centroid(&boxes[t as usize]), clo, scale) << 32 | t as u64),
-        );
-        keys.sort_unstable();
-        self.order.extend(keys.iter().map(|&k| k as u32));
-        self.nodes.push(TopNode {
+        top.nodes.push(TopNode {
             set: SetBounds::default(),
             start: 0,
             len: live as u32,
             kids: 0,
             axis: 0,
         });
-        self.split(&keys, 0, 0, leaf, max_depth);
-        drop(keys);
+        match rule {
+            TopSplit::Middle => {
+                let scale = quant_scale(chi - clo);
+                let mut items: Vec<Item> = Vec::new();
+                reserve_exact_huge(&mut items, live, true);
+                let (mut qlo, mut qhi) = ([u16::MAX; 3], [0u16; 3]);
+                items.extend(live_ids(boxes).map(|id| {
+                    let q = quantize(centroid(&boxes[id as usize]), clo, scale);
+                    for a in 0..3 {
+                        (qlo[a], qhi[a]) = (qlo[a].min(q[a]), qhi[a].max(q[a]));
+                    }
+                    Item { q, id }
+                }));
+                top.split_middle(&mut items, 0, (qlo, qhi), 0, leaf, max_depth);
+                top.order.extend(items.iter().map(|it| it.id));
+            }
+            TopSplit::Morton => {
+                let scale = morton::scale_for(chi - clo);
+                let mut keys: Vec<u64> = Vec::new();
+                reserve_exact_huge(&mut keys, live, true);
+                keys.extend(live_ids(boxes).map(|t| {
+                    morton::code30(centroid(&boxes[t as usize]), clo, scale) << 32 | t as u64
+                }));
+                keys.sort_unstable();
+                top.order.extend(keys.iter().map(|&k| k as u32));
+                top.split_morton(&keys, 0, 0, leaf, max_depth);
+            }
+        }
         // Boxes leaves first: children come after their parent.
-        for i in (0..self.nodes.len()).rev() {
-            let n = self.nodes[i];
+        for i in (0..top.nodes.len()).rev() {
+            let n = top.nodes[i];
             let set = if n.kids == 0 {
                 let (s, e) = (n.start as usize, (n.start + n.len) as usize);
-                self.order[s..e]
+                top.order[s..e]
                     .iter()
                     .fold(SetBounds::default(), |set, &t| {
                         let b = &boxes[t as usize];
@@ -119,8 +169,8 @@ impl Top {
                     })
             } else {
                 let (a, b) = (
-                    self.nodes[n.kids as usize].set,
-                    self.nodes[n.kids as usize + 1].set,
+                    top.nodes[n.kids as usize].set,
+                    top.nodes[n.kids as usize + 1].set,
                 );
                 SetBounds {
                     lo: a.lo.min(b.lo),
@@ -129,23 +179,14 @@ impl Top {
                     chi: a.chi.max(b.chi),
                 }
             };
-            self.nodes[i].set = set;
+            top.nodes[i].set = set;
         }
+        top
     }
 
-    /// Splits node `i` (at `depth`; its codes `keys[start..start + len]`, high halves) where its
-    /// highest differing bit changes, and its children, depth first (no allocation but the
-    /// nodes').
-    fn split(&mut self, keys: &[u64], i: usize, depth: u32, leaf: usize, max_depth: u32) {
+    /// Adds node `i`'s two children (`n1` items first); returns the index of the first.
+    fn push_kids(&mut self, i: usize, n1: u32, axis: u32) -> usize {
         let n = self.nodes[i];
-        let (s, e) = (n.start as usize, (n.start + n.len) as usize);
-        let diff = (keys[s] ^ keys[e - 1]) >> 32;
-        if n.len as usize <= leaf || depth >= max_depth || diff == 0 {
-            return;
-        }
-        let bit = 63 - diff.leading_zeros();
-        // The codes are sorted and agree above `bit`: those with it clear come first.
-        let n1 = keys[s..e].partition_point(|k| (k >> 32) & (1 << bit) == 0) as u32;
         let kids = self.nodes.len();
         for (start, len) in [(n.start, n1), (n.start + n1, n.len - n1)] {
             self.nodes.push(TopNode {
@@ -156,10 +197,74 @@ impl Top {
                 axis: 0,
             });
         }
-        // Bit `3k + a` is axis `a`'s: the first child is the low side.
-        (self.nodes[i].kids, self.nodes[i].axis) = (kids as u32, bit % 3);
-        self.split(keys, kids, depth + 1, leaf, max_depth);
-        self.split(keys, kids + 1, depth + 1, leaf, max_depth);
+        (self.nodes[i].kids, self.nodes[i].axis) = (kids as u32, axis);
+        kids
+    }
+
+    /// Splits node `i` (at `depth`; its items `items[start..start + len]`, their quantized
+    /// centroid bounds `q`) at the middle of the bounds' longest axis (`space::split_set`'s
+    /// rule on quantized centroids), low side first, and its children, depth first. Each item
+    /// is read once and written once per level (a whole 12-byte record: no partial store
+    /// before its load).
+    fn split_middle(
+        &mut self,
+        items: &mut [Item],
+        i: usize,
+        (qlo, qhi): ([u16; 3], [u16; 3]),
+        depth: u32,
+        leaf: usize,
+        max_depth: u32,
+    ) {
+        let n = self.nodes[i];
+        let ext = [0, 1, 2].map(|a| qhi[a] - qlo[a]);
+        let a = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+            0
+        } else if ext[1] >= ext[2] {
+            1
+        } else {
+            2
+        };
+        if n.len as usize <= leaf || depth >= max_depth || ext[a] == 0 {
+            return;
+        }
+        // `lo <= mid < hi`: both sides hold an item.
+        let mid = qlo[a] + ext[a] / 2;
+        let (s, e) = (n.start as usize, (n.start + n.len) as usize);
+        let part = &mut items[s..e];
+        let (mut b1, mut b2) = (([u16::MAX; 3], [0u16; 3]), ([u16::MAX; 3], [0u16; 3]));
+        let mut n1 = 0;
+        for p in 0..part.len() {
+            let it = part[p];
+            let low = it.q[a] <= mid;
+            let b = if low { &mut b1 } else { &mut b2 };
+            for k in 0..3 {
+                (b.0[k], b.1[k]) = (b.0[k].min(it.q[k]), b.1[k].max(it.q[k]));
+            }
+            part[p] = part[n1];
+            part[n1] = it;
+            n1 += low as usize;
+        }
+        let kids = self.push_kids(i, n1 as u32, a as u32);
+        self.split_middle(items, kids, b1, depth + 1, leaf, max_depth);
+        self.split_middle(items, kids + 1, b2, depth + 1, leaf, max_depth);
+    }
+
+    /// Splits node `i` (at `depth`; its codes `keys[start..start + len]`, high halves) where its
+    /// highest differing bit changes, and its children, depth first.
+    fn split_morton(&mut self, keys: &[u64], i: usize, depth: u32, leaf: usize, max_depth: u32) {
+        let n = self.nodes[i];
+        let (s, e) = (n.start as usize, (n.start + n.len) as usize);
+        let diff = (keys[s] ^ keys[e - 1]) >> 32;
+        if n.len as usize <= leaf || depth >= max_depth || diff == 0 {
+            return;
+        }
+        let bit = 63 - diff.leading_zeros();
+        // The codes are sorted and agree above `bit`: those with it clear come first, the low
+        // side of axis `bit % 3` (bit `3k + a` is axis `a`'s).
+        let n1 = keys[s..e].partition_point(|k| (k >> 32) & (1 << bit) == 0) as u32;
+        let kids = self.push_kids(i, n1, bit % 3);
+        self.split_morton(keys, kids, depth + 1, leaf, max_depth);
+        self.split_morton(keys, kids + 1, depth + 1, leaf, max_depth);
     }
 
     /// Bytes held.
