@@ -91,9 +91,10 @@ fn centroid(b: &[f32; 6]) -> Vec3 {
     Vec3::new(b[0] + b[3], b[1] + b[4], b[2] + b[5])
 }
 
-/// The scale that maps an extent onto `0..=65535` (flat axes: every centroid at 0).
+/// The scale that maps the largest extent onto `0..=65535`, the same on every axis (so the
+/// longest quantized extent is the longest one).
 fn quant_scale(extent: Vec3) -> Vec3 {
-    Vec3::splat(65535.0) / extent.max(Vec3::splat(f32::MIN_POSITIVE))
+    Vec3::splat(65535.0 / extent.max_element().max(f32::MIN_POSITIVE))
 }
 
 #[inline(always)]
@@ -144,7 +145,8 @@ impl Top {
                 top.order.extend(items.iter().map(|it| it.id));
             }
             TopSplit::Morton => {
-                let scale = morton::scale_for(chi - clo);
+                // A cubic grid: cells as long on every axis, so a cut halves the longest side.
+                let scale = morton::scale_for(Vec3::splat((chi - clo).max_element()));
                 let mut keys: Vec<u64> = Vec::new();
                 reserve_exact_huge(&mut keys, live, true);
                 keys.extend(live_ids(boxes).map(|t| {
