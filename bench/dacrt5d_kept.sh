@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue #17, the bundles through the kept levels (BENCHMARKS.md § "dacrt5d: bundles through the
-# kept levels"): every batch of dacrt5d_bench for bvh, dacrt, dacrt5d and its two ablations
-# (bundles starting on every triangle; kept levels down to 256 triangles) in one process,
-# contenders alternating, best of 3, one thread; then, with OLD=path/to/an/older/dacrt5d_bench,
+# kept levels"): every batch of dacrt5d_bench for bvh, dacrt, dacrt5d and three variants
+# (bundles starting on every triangle; kept levels down to 256 triangles; kept levels split at
+# the centroids' middle) in one process, contenders alternating, best of 3, one thread; then, with OLD=path/to/an/older/dacrt5d_bench,
 # that binary's dacrt5d and this one's in alternating processes (two rounds each).
 #   bash bench/dacrt5d_kept.sh [OUT.md]        (scenes from ../shared/scenes or RAYSIFT_SCENES)
 set -euo pipefail
@@ -19,7 +19,7 @@ run() { local b=$1; shift; echo; echo '```text'; echo "dacrt5d_bench $*"; echo '
     # shellcheck disable=SC2046
     run "$B" "$S/$sc" --width 512 --random 65536 --bounces 3 --repeat 3 --threads 1 $(cams $sc) \
       --tracer bvh --tracer dacrt --tracer dacrt5d --tracer "dacrt5d kept_bundles=false" \
-      --tracer "dacrt5d top_leaf=256" --counters
+      --tracer "dacrt5d top_leaf=256" --tracer "dacrt5d top_split=middle" --counters
   done
   if [ -n "${OLD:-}" ]; then
     echo; echo "## Against $OLD"
