@@ -2,8 +2,9 @@
 # Issue #17, the bundles through the kept levels (BENCHMARKS.md § "dacrt5d: bundles through the
 # kept levels"): every batch of dacrt5d_bench for bvh, dacrt, dacrt5d and three variants
 # (bundles starting on every triangle; kept levels down to 256 triangles; kept levels split at
-# the centroids' middle) in one process, contenders alternating, best of 3, one thread; then, with OLD=path/to/an/older/dacrt5d_bench,
-# that binary's dacrt5d and this one's in alternating processes (two rounds each).
+# the centroids' middle) in one process, contenders alternating, best of 3, one thread; then,
+# with OLD=path/to/an/older/dacrt5d_bench, that binary's dacrt5d and this one's in alternating
+# processes (two rounds each).
 #   bash bench/dacrt5d_kept.sh [OUT.md]        (scenes from ../shared/scenes or RAYSIFT_SCENES)
 set -euo pipefail
 cd "$(dirname "$0")/.."
