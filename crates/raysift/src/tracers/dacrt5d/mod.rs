@@ -78,7 +78,7 @@
 //!     as many triangles as the rays that reach it, each child taking the rays clipped to its
 //!     box, where the bundle's 5D recursion starts; before, every bundle's root culled every
 //!     triangle and its box splits made a pass over all of them per level (the dragon's 512²
-//!     camera: 273 against 128 ms). BENCHMARKS.md § "dacrt5d: box splits" and § "dacrt5d:
+//!     camera: 243 against 116 ms). BENCHMARKS.md § "dacrt5d: box splits" and § "dacrt5d:
 //!     bundles through the kept levels";
 //!   - `major` (the first hybrid; `Task::spatial_split`): a cut along the bundle's major axis at
 //!     the mean of the triangles' near ends: the near triangles (near end at or before the

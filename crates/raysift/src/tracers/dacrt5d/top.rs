@@ -13,13 +13,17 @@
 //!   the live centroids' box), one sort; a node's range of the sorted codes splits where its
 //!   highest differing bit changes (a cut at the middle of a grid cell on that bit's axis, as a
 //!   linear BVH builder makes it), down to nodes of at most `top_leaf` triangles or of one
-//!   code. A sort and a pass over the leaves instead of a pass per level: 55–85 ms on the 871K
+//!   code. A sort and a pass over the leaves instead of a pass per level: 73–75 ms on the 871K
 //!   dragon, where the per-call rule over ids took 105–220 ms (11M gathers of scattered boxes).
 //! - `middle`: the per-call splits' rule (the middle of the centroids' longest extent,
 //!   `space::split_set`) on centroids quantized to 16 bits, moving 12-byte items level by level
-//!   (each read and written whole). Better splits where Morton cells cut badly (Sponza's
-//!   bounces 0.91× the time), a dearer build (the dragon's frame 1.25×): BENCHMARKS.md
-//!   § "dacrt5d: bundles through the kept levels".
+//!   (each read and written whole): traces within 5% of `morton`'s (the dragon's camera
+//!   0.95×, Sponza's shadow rays 1.08×), a build 2.5× dearer (175–199 against 73–75 ms on the
+//!   dragon): BENCHMARKS.md § "dacrt5d: bundles through the kept levels".
+//!
+//! Both use one scale on every axis (a cubic Morton grid; 16-bit centroids comparable across
+//! axes): with one per axis the longest quantized extent was not the longest one, and Sponza's
+//! shadow rays made 12.7 triangle tests each against 5.3 with every split made per call.
 //!
 //! The splits below a kept leaf are made per call from its triangles and centroid bounds. The
 //! exactness argument is the box splits' (`space.rs`): each node's box is its triangles' union
