@@ -504,8 +504,8 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
 /// are made too, for the children's splits (the bundles' splits, whose children cull first, do
 /// without: making them anyway cost the dragon's camera rays 14% in one A/B). `None` when the
 /// centroids do not spread or one side is empty. The sets depend on the triangles only (`up`
-/// only says which is first). (The kept levels, [`super::top`], cut at Morton cells instead:
-/// made once, in a sort rather than a pass per level.)
+/// only says which is first). (The kept levels, [`super::top`], are made once by their own
+/// rules: Morton cells, or this one on 16-bit centroids.)
 #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(ext > 0)`: NaN extents do not split
 pub(super) fn split_set<const CB: bool>(
     idx: &mut [u32],

@@ -1,5 +1,5 @@
 //! The upper levels of the box splits shared above the bundles (`space.rs`), made by the first
-//! call that shares splits after a `prepare` and kept for the next calls (`top_leaf`).
+//! call with box splits after a `prepare` and kept for the next calls (`top_leaf`).
 //!
 //! Those splits depend on the triangles only: the rays only choose which side they visit
 //! first. Made per call, their upper levels cost a pass over every triangle per level, whatever
@@ -9,16 +9,16 @@
 //! below nodes of `top_leaf` triangles.
 //!
 //! Two ways to make them (`top_split`), both leaves first for the boxes and centroid bounds:
-//! - `morton` (default): the centroids in Morton order (`geom::morton`, 10 bits per axis over
-//!   the live centroids' box), one sort; a node's range of the sorted codes splits where its
+//! - `morton` (default): the centroids in Morton order (`geom::morton`, a cubic grid of 1024
+//!   cells a side over their largest extent), one sort; a node's range of the sorted codes splits where its
 //!   highest differing bit changes (a cut at the middle of a grid cell on that bit's axis, as a
 //!   linear BVH builder makes it), down to nodes of at most `top_leaf` triangles or of one
 //!   code. A sort and a pass over the leaves instead of a pass per level: 73–75 ms on the 871K
 //!   dragon, where the per-call rule over ids took 105–220 ms (11M gathers of scattered boxes).
 //! - `middle`: the per-call splits' rule (the middle of the centroids' longest extent,
 //!   `space::split_set`) on centroids quantized to 16 bits, moving 12-byte items level by level
-//!   (each read and written whole): traces within 5% of `morton`'s (the dragon's camera
-//!   0.95×, Sponza's shadow rays 1.08×), a build 2.5× dearer (175–199 against 73–75 ms on the
+//!   (each read and written whole): traces 0.88–1.08× `morton`'s, batch by batch (the
+//!   dragon's camera 0.95×, Sponza's shadow rays 1.08×), a build 2.5× dearer (175–199 against 73–75 ms on the
 //!   dragon): BENCHMARKS.md § "dacrt5d: bundles through the kept levels".
 //!
 //! Both use one scale on every axis (a cubic Morton grid; 16-bit centroids comparable across
