@@ -90,13 +90,13 @@ pub struct Config {
     pub shared_leaf: usize,
     /// With `space=box`: the upper levels of the shared splits, down to nodes of this many
     /// triangles, are made by the first call after a `prepare` and kept between calls (they
-    /// depend on the triangles only); 0 makes every split per call. Default 8 (`shared_leaf`'s: every shared split is
-    /// kept; 256, the earlier default, against 8: BENCHMARKS.md § "dacrt5d: bundles through the
-    /// kept levels").
+    /// depend on the triangles only); 0 makes every split per call. Default 8, `shared_leaf`'s:
+    /// every shared split is kept (256, the earlier default, against 8: BENCHMARKS.md
+    /// § "dacrt5d: bundles through the kept levels").
     pub top_leaf: usize,
     /// How the kept levels split: `morton` (a sort, then Morton cells) or `middle` (the
-    /// per-call splits' rule on 16-bit centroids: better splits, a dearer build). Default
-    /// morton.
+    /// per-call splits' rule on 16-bit centroids: traces 0.88–1.08× `morton`'s, a build 2.5×
+    /// dearer). Default morton.
     pub top_split: super::TopSplit,
     /// With `space=box` and kept levels: a handed-over bundle walks them too, down to the
     /// first kept node holding at most `spatial_ratio` times its rays' count of triangles (or a
@@ -148,7 +148,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "spatial_ratio", doc: "spatial split when triangles > spatial_ratio * rays" },
     OptionDoc { key: "space", doc: "spatial split: box (object split, rays clipped to each child's box, re-culled) or major (major-axis cut, early termination)" },
     OptionDoc { key: "hand_over", doc: "space=box: at the root, bundles whose origins' box is at most this fraction of the scene's start their own 5D recursion; the rest share box splits" },
-    OptionDoc { key: "top_leaf", doc: "space=box: shared splits above nodes of this many triangles are made at prepare and kept (0: none)" },
+    OptionDoc { key: "top_leaf", doc: "space=box: shared splits above nodes of this many triangles are made by the first call after prepare and kept (0: none)" },
     OptionDoc { key: "kept_bundles", doc: "space=box: handed-over bundles walk the kept levels (children's rays clipped) before their 5D recursion; false: it starts on every triangle" },
     OptionDoc { key: "top_split", doc: "space=box: kept levels split at the middle of the centroids' longest extent (middle) or at Morton cells (morton)" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
