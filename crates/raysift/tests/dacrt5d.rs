@@ -312,6 +312,53 @@ fn one_morton_cell_holding_many_triangles() {
     check(&s, &rays);
 }
 
+/// Kept levels whose splits peel one triangle at a time (triangles at 2^k, k = 0..40: every
+/// Morton or middle cut separates the farthest from the rest) would need more nodes than the
+/// `64·(4·T/(top_leaf + 1) + 1)` bytes reserved: they stop there, the rest is split per call,
+/// and the answers stay `naive`'s in both rules.
+#[test]
+fn kept_levels_stop_at_their_reservation() {
+    let mut pos = Vec::new();
+    for k in 0..40 {
+        let x = (2.0f32).powi(k);
+        pos.extend([
+            Vec3::new(x, -1.0, -1.0),
+            Vec3::new(x, 1.0, -1.0),
+            Vec3::new(x, 0.0, 1.0),
+        ]);
+    }
+    let idx = (0..pos.len() as u32 / 3)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    let s = Scene::from_meshes("peel", vec![raysift::scene::Mesh::new("m", pos, idx)]).unwrap();
+    let t = s.len() as u64;
+    let mut rays = random_in_box(&s.bounds(), 400, 11);
+    for i in 0..rays.len() {
+        // Along the row of triangles, both ways, from inside and before it.
+        let o = Vec3::new(
+            if i % 2 == 0 { 0.5 } else { 3e12 },
+            0.1 * (i % 7) as f32 - 0.3,
+            0.0,
+        );
+        let d = Vec3::new(
+            if i % 2 == 0 { 1.0 } else { -1.0 },
+            0.0,
+            0.01 * (i % 5) as f32,
+        );
+        (rays.ox[i], rays.oy[i], rays.oz[i]) = (o.x, o.y, o.z);
+        (rays.dx[i], rays.dy[i], rays.dz[i]) = (d.x, d.y, d.z);
+    }
+    for rule in ["morton", "middle"] {
+        let st = stats(&s, &rays, &[("top_split", rule), ("hand_over", "0")]);
+        let built = st.work.get("top_built");
+        assert!(
+            built > 0 && built <= 4 * t / 9 + 1,
+            "{rule}: {built} nodes for {t} triangles"
+        );
+    }
+    check(&s, &rays);
+}
+
 // ---------------------------------------------------------------- memory
 
 struct Counting;

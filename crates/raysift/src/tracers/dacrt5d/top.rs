@@ -30,8 +30,9 @@
 //! box and the two children's triangles are disjoint.
 //!
 //! Memory (deterministic): the triangle order, `4·T`, and at most `4·T / (top_leaf + 1) + 1`
-//! nodes of 64 bytes (every inner node holds more than `top_leaf` triangles, and the deepest
-//! inner nodes are disjoint), reserved exactly; while building, the sort keys (`8·T`, `morton`)
+//! nodes of 64 bytes, reserved exactly (a spread scene needs no more: every inner node holds
+//! more than `top_leaf` triangles, and the deepest inner nodes are disjoint; where splits peel a
+//! few triangles at a time, the levels stop at the reservation, `Top::full`); while building, the sort keys (`8·T`, `morton`)
 //! or the items (`12·T`, `middle`), freed.
 
 use super::space::SetBounds;
@@ -190,6 +191,14 @@ impl Top {
         top
     }
 
+    /// Whether the reserved nodes are used up: splits that peel a few triangles at a time (a
+    /// chain of inner nodes, each with a small leaf) could need up to `2·T − 1` nodes; past the
+    /// reservation the node stays a kept leaf and its splits are made per call (as exact), so
+    /// the bound holds for every scene.
+    fn full(&self) -> bool {
+        self.nodes.len() + 2 > self.nodes.capacity()
+    }
+
     /// Adds node `i`'s two children (`n1` items first); returns the index of the first.
     fn push_kids(&mut self, i: usize, n1: u32, axis: u32) -> usize {
         let n = self.nodes[i];
@@ -230,7 +239,7 @@ impl Top {
         } else {
             2
         };
-        if n.len as usize <= leaf || depth >= max_depth || ext[a] == 0 {
+        if n.len as usize <= leaf || depth >= max_depth || ext[a] == 0 || self.full() {
             return;
         }
         // `lo <= mid < hi`: both sides hold an item.
@@ -261,7 +270,7 @@ impl Top {
         let n = self.nodes[i];
         let (s, e) = (n.start as usize, (n.start + n.len) as usize);
         let diff = (keys[s] ^ keys[e - 1]) >> 32;
-        if n.len as usize <= leaf || depth >= max_depth || diff == 0 {
+        if n.len as usize <= leaf || depth >= max_depth || diff == 0 || self.full() {
             return;
         }
         let bit = 63 - diff.leading_zeros();
