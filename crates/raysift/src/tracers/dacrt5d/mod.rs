@@ -104,9 +104,10 @@
 //! for the shared splits), kept by the tracer for the next call (a second call of the same size
 //! allocates nothing). The first call with box splits after a `prepare` also keeps their
 //! upper levels: `4·T` (the triangle order) and at most `64·(4·T/(top_leaf + 1) + 1)` bytes of
-//! nodes (at most 28.4 B per triangle with `top_leaf` 8; 25 on the dragon), and frees the
-//! `8·T` of its build's sort keys. So `a = 24 + 4K` bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84`
-//! per ray (48 without box splits); `tests/dacrt5d.rs` checks it with a counting allocator.
+//! nodes (at most 28.4 B per triangle with `top_leaf` 8; 25 on the dragon), and frees its
+//! build's `8·T` of sort keys (`12·T` of items with `top_split=middle`). So `a = 24 + 4K`
+//! bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84` per ray (48 without
+//! box splits); `tests/dacrt5d.rs` checks it with a counting allocator.
 
 mod config;
 mod rec;
@@ -207,8 +208,8 @@ crate::counters! {
         top_splits,
         /// Kept nodes a handed-over bundle went through to its children (`kept_bundles`).
         kept_descents,
-        /// Nodes of the kept upper levels this call made (`top.rs`; the first call after a
-        /// `prepare` that shares splits makes them).
+        /// Nodes of the kept upper levels this call made (`top.rs`; the first call with box
+        /// splits after a `prepare` makes them).
         top_built,
         /// Ray/box clips (each box split clips its rays against both children's boxes).
         ray_clips,
