@@ -351,6 +351,12 @@ fn table6(spec: &str, frames: u32) {
             "rtrps",
             opts(&[("ray_check", "false")]),
         ),
+        ("rtrps, no hit cut", "rtrps", opts(&[("hit_cut", "false")])),
+        (
+            "rtrps, no hit cut, hierarchy's order",
+            "rtrps",
+            opts(&[("hit_cut", "false"), ("near_first", "false")]),
+        ),
         ("bvh rebuild", "bvh", vec![]),
         ("bvh refit", "bvh", opts(&[("update", "refit")])),
         ("dacrt", "dacrt", vec![]),

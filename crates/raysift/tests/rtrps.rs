@@ -320,10 +320,11 @@ fn depth_cull_and_binary_levels_remove_work() {
         .collect();
     let rays = grids(&origins, -Vec3::X, 16, 0.3);
     let run = |opts: &[(&str, &str)]| closest_with(&scene, &rays, opts);
-    let (h_off, off) = run(&[("depth_cull", "false")]);
-    let (h_on, on) = run(&[]);
-    let (h_flat, flat) = run(&[("levels", "flat")]);
-    let (h_nocheck, nocheck) = run(&[("ray_check", "false")]);
+    // Without the hit cut, which would take some of the rays the check drops.
+    let (h_off, off) = run(&[("depth_cull", "false"), ("hit_cut", "false")]);
+    let (h_on, on) = run(&[("hit_cut", "false")]);
+    let (h_flat, flat) = run(&[("levels", "flat"), ("hit_cut", "false")]);
+    let (h_nocheck, nocheck) = run(&[("ray_check", "false"), ("hit_cut", "false")]);
     // The per-ray check drops reproduced rays that miss the leaf sphere before their triangles.
     assert_eq!(nocheck.get("ray_culled"), 0);
     assert!(on.get("ray_culled") > 0, "{on:?}");
@@ -346,6 +347,69 @@ fn depth_cull_and_binary_levels_remove_work() {
     assert_eq!(raysift::testkit::first_difference(&h_off, &h_on), None);
     assert_eq!(raysift::testkit::first_difference(&h_off, &h_flat), None);
     check(&scene, &rays);
+}
+
+/// Closest hits cut the walk (`hit_cut`, `near_first`): a camera looking through a stack of
+/// 16 layers, each present twice (the duplicate with the larger id, so ties go to the first),
+/// and a layer bent towards the camera, with directions of length 1e-3, 1 and 1e3 (the cut
+/// compares `t·|d|` with distances along the unit direction). The cut removes triangle tests,
+/// culls spheres behind the front layer, and answers stay equal to `naive`'s in every preset.
+#[test]
+fn closest_hits_cut_the_walk() {
+    let mut tris = Vec::new();
+    for copy in 0..2 {
+        for layer in 0..16 {
+            let z = -(layer as f32) * 0.25;
+            for x in -6..6 {
+                for y in -6..6 {
+                    let (x, y) = (x as f32 * 0.5, y as f32 * 0.5);
+                    // Layer 0 is bent: its triangles come nearer the camera to the right.
+                    let lift = if layer == 0 { 0.05 * x } else { 0.0 };
+                    if copy == 1 && layer % 2 == 1 {
+                        continue;
+                    }
+                    tris.push([
+                        Vec3::new(x, y, z + lift),
+                        Vec3::new(x + 0.5, y, z + lift),
+                        Vec3::new(x, y + 0.5, z + lift),
+                    ]);
+                    tris.push([
+                        Vec3::new(x + 0.5, y, z + lift),
+                        Vec3::new(x + 0.5, y + 0.5, z + lift),
+                        Vec3::new(x, y + 0.5, z + lift),
+                    ]);
+                }
+            }
+        }
+    }
+    let scene = scene_of("stack", &tris);
+    let cam = Camera::framing(&scene.bounds(), 50.0, 1.0).rays(48, 40);
+    for len in [1e3f32, 1.0, 1e-3] {
+        let mut rays = cam.clone();
+        for i in 0..rays.len() {
+            let d = rays.dir(i).normalize() * len;
+            (rays.dx[i], rays.dy[i], rays.dz[i]) = (d.x, d.y, d.z);
+        }
+        let run = |opts: &[(&str, &str)]| closest_with(&scene, &rays, opts);
+        let (h_on, on) = run(&[]);
+        let (h_off, off) = run(&[("hit_cut", "false"), ("near_first", "false")]);
+        let (h_order, order) = run(&[("near_first", "false")]);
+        assert_eq!(raysift::testkit::first_difference(&h_off, &h_on), None);
+        assert_eq!(raysift::testkit::first_difference(&h_off, &h_order), None);
+        assert_eq!(off.get("hit_culled") + off.get("depth_culled"), 0);
+        assert!(on.get("hit_culled") > 0 && on.get("depth_culled") > 0, "{on:?}");
+        assert!(
+            2 * on.get("tri_tests") < off.get("tri_tests")
+                && on.get("spheres_visited") < off.get("spheres_visited"),
+            "{on:?} vs {off:?}"
+        );
+        // Nearer children first find the front layer before the layers behind it.
+        assert!(
+            on.get("tri_tests") < order.get("tri_tests"),
+            "{on:?} vs {order:?}"
+        );
+        check(&scene, &rays);
+    }
 }
 
 /// Cosine hemisphere grids whose rows are azimuths and whose columns are radii (the renderers'

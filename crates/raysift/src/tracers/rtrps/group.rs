@@ -119,6 +119,13 @@ pub struct Scratch {
     pub(super) bp: Vec<u32>,
     pub(super) bu: Vec<f32>,
     pub(super) bv: Vec<f32>,
+    /// `|d|` of each ray (`hit_cut`: a hit at `t` lies `t·|d|` along the unit direction).
+    pub(super) dl: Vec<f32>,
+    /// `hit_cut` (closest hits under the depth cull): the far bound of each row's rays (by
+    /// index) from their closest hits so far, and the rows whose hits improved since.
+    pub(super) cut: bool,
+    pub(super) rowz: [f32; MAX_FAN],
+    pub(super) dirty: u64,
     /// Smallest `|d|∞` of the group's rays (the common-origin test's pre-test bound).
     pub(super) dlow: f32,
     /// The current leaf's triangles prepared for the group's origin (built on first use).
@@ -154,6 +161,10 @@ impl Scratch {
             bp: Vec::new(),
             bu: Vec::new(),
             bv: Vec::new(),
+            dl: Vec::new(),
+            cut: false,
+            rowz: [f32::INFINITY; MAX_FAN],
+            dirty: 0,
             dlow: 0.0,
             tris: Vec::new(),
             cone: None,
@@ -168,7 +179,7 @@ impl Scratch {
     pub fn bytes(&self) -> usize {
         let f = [
             &self.dx, &self.dy, &self.dz, &self.tmin, &self.tmax, &self.gx, &self.gy, &self.gz,
-            &self.ix, &self.iy, &self.iz, &self.bt, &self.bu, &self.bv,
+            &self.ix, &self.iy, &self.iz, &self.bt, &self.bu, &self.bv, &self.dl,
         ];
         self.g.capacity() * 12
             + f.iter().map(|v| v.capacity() * 4).sum::<usize>()
@@ -193,6 +204,7 @@ impl Scratch {
             &mut self.gx,
             &mut self.gy,
             &mut self.gz,
+            &mut self.dl,
         ] {
             v.clear();
             v.resize(n, 0.0);
@@ -212,6 +224,7 @@ impl Scratch {
                 (self.dx[at], self.dy[at], self.dz[at]) = (d.x, d.y, d.z);
                 (self.tmin[at], self.tmax[at]) = (rays.tmin[r], rays.tmax[r]);
                 (self.gx[at], self.gy[at], self.gz[at]) = (u.x, u.y, u.z);
+                self.dl[at] = d.length();
                 if inverse {
                     (self.ix[at], self.iy[at], self.iz[at]) = (1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
                 }
@@ -228,6 +241,26 @@ impl Scratch {
             self.bv.clear();
             self.bv.resize(n, 0.0);
         }
+    }
+}
+
+impl Scratch {
+    /// Recomputes the far bounds of the rows whose hits improved, and lowers the group's
+    /// (`hit_cut`): [`depth_range`]'s bound with each ray's closest hit `t` for its `tmax` (the
+    /// same margins: a hit nearer than or tied with the closest so far lies at most that deep).
+    pub(super) fn lower_depth(&mut self, rows: usize, cols: usize) {
+        let mut dirty = std::mem::take(&mut self.dirty);
+        while dirty != 0 {
+            let i = dirty.trailing_zeros() as usize;
+            dirty &= dirty - 1;
+            let at = i * self.rs;
+            self.rowz[i] = (at..at + cols).fold(0.0, |m, x| {
+                let far = self.bt[x] * self.dl[x] * (self.gz[x] + 1e-6);
+                m.max(far * (1.0 + 1e-5))
+            });
+        }
+        let all = self.rowz[..rows].iter().fold(0.0f32, |m, &v| m.max(v));
+        self.depth = self.depth.map(|d| d.min(all));
     }
 }
 
@@ -531,8 +564,18 @@ impl Walk<'_> {
         let Some(pm) = f.sphere(s, part.centre, part.radius, pm, cfg, n) else {
             return false;
         };
+        // Closest hits visit nearer spheres first (`near_first`): by the grid depth of the
+        // children's centres, and a run of leaves (Morton order) from its nearer end.
+        let near = cfg.near_first && matches!(out, Out::Hits(_));
+        let depth = |c: Vec3| f.m[2].dot(c);
+        let run = |r: std::ops::Range<u32>| {
+            let (a, b) = (r.start, r.end);
+            let back =
+                near && b > a + 1 && depth(tree.leaf_c[b as usize - 1]) < depth(tree.leaf_c[a as usize]);
+            r.map(move |k| if back { a + b - 1 - k } else { k })
+        };
         if part.inner.is_empty() {
-            for l in part.leaves.clone() {
+            for l in run(part.leaves.clone()) {
                 self.leaf(l as usize, f, pm, s, out, cost.as_deref_mut(), n, live);
                 if *live == 0 {
                     return true;
@@ -558,7 +601,7 @@ impl Walk<'_> {
                 match tree.inner_kids[k] {
                     [NO_KID, _] => {
                         let [l0, l1] = tree.inner_leaves[k];
-                        for l in l0..l1 {
+                        for l in run(l0..l1) {
                             self.leaf(l as usize, f, km, s, out, cost.as_deref_mut(), n, live);
                         }
                         if *live == 0 {
@@ -566,6 +609,13 @@ impl Walk<'_> {
                         }
                     }
                     [a, b] => {
+                        let (a, b) = if near
+                            && depth(tree.inner_c[b as usize]) < depth(tree.inner_c[a as usize])
+                        {
+                            (b, a)
+                        } else {
+                            (a, b)
+                        };
                         stack[sp] = (b, km);
                         stack[sp + 1] = (a, km);
                         sp += 2;
@@ -640,6 +690,11 @@ pub fn trace(
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
     s.load(rays, g, matches!(out, Out::Hits(_)), cfg.box_check);
+    s.cut = cfg.hit_cut && matches!(out, Out::Hits(_)) && s.depth.is_some();
+    if s.cut {
+        s.dirty = mask(g.rows);
+        s.lower_depth(g.rows, cols);
+    }
     // The group's cone about the frame's z: the rays' grid-frame unit directions `s.g` are
     // within a few 1e-7 of the true ones (normalised and rotated in f32), so their least `z`
     // less 1e-6 bounds every true cosine.
@@ -669,6 +724,7 @@ pub fn trace(
     // The part tree depth first (its root is the scene sphere), world spheres brought into the
     // grid frame; a bottom node's parts each get their own frame. A fixed stack, deep enough for
     // any binary tree over u32 parts.
+    let near = cfg.near_first && matches!(out, Out::Hits(_));
     let mut stack = [(0u32, full); MAX_DEPTH + 1];
     let mut sp = usize::from(!tree.parts.is_empty());
     'walk: while sp > 0 {
@@ -694,6 +750,15 @@ pub fn trace(
                 }
             }
             [x, y] => {
+                // Nearer node first for closest hits (`near_first`), by world centres along the
+                // grid's axis.
+                let (x, y) = if near
+                    && frame[2].dot(tree.pnode_c[y as usize]) < frame[2].dot(tree.pnode_c[x as usize])
+                {
+                    (y, x)
+                } else {
+                    (x, y)
+                };
                 stack[sp] = (y, km);
                 stack[sp + 1] = (x, km);
                 sp += 2;

@@ -60,16 +60,27 @@ impl Walk<'_> {
         // the centre off by at most `f.e`, so the radius is widened by `f.e` and 1e-5 relative
         // of the centre's distance and of the radius (which also covers the rounding of
         // `|c × g|²` in any order of evaluation).
-        let check = self.cfg.ray_check.then(|| {
+        let closest = matches!(out, Out::Hits(_));
+        let sph = (self.cfg.ray_check || self.cfg.hit_cut && closest).then(|| {
             let c = f.apply(tree.leaf_c[l]);
             let r = (tree.leaf_r[l] * f.sigma + f.e) * (1.0 + 1e-5) + c.length() * 1e-5;
-            (c, r * r)
+            (c, r)
         });
+        let check = sph.filter(|_| self.cfg.ray_check).map(|(c, r)| (c, r * r));
+        // The hit cut (`hit_cut`, closest hits): a hit at `t` is a point `t·|d|·g` of the sphere
+        // (`g` the ray's grid-frame unit direction), so `t·|d| >= g·c − r` whatever the sign of
+        // `t`; a ray whose closest hit so far is nearer than that has nothing to gain here. The
+        // radius is widened by 2e-5 of the centre's distance more (the f32 dot product and
+        // `g`'s rounding), the hit's `t·|d|` by 1e-5 relative.
+        let near = sph
+            .filter(|_| self.cfg.hit_cut && closest)
+            .map(|(c, r)| (c, r + c.length() * 2e-5));
         s.tris.clear();
         let leaf = Leaf {
             rm,
             cols,
             check,
+            near,
             tris: tree.leaf_tris[l],
         };
         if !self.origin_form {
@@ -94,6 +105,13 @@ impl Walk<'_> {
                             continue;
                         }
                     }
+                    if let Some((c, r)) = leaf.near {
+                        let b = s.bt[x] * s.dl[x];
+                        if c.dot(s.g[k]) - r > b + b.abs() * 1e-5 {
+                            n.hit_culled += 1;
+                            continue;
+                        }
+                    }
                     let (ro, rd, tmin) = (rays.origin(r), rays.dir(r), rays.tmin[r]);
                     n.tri_tests += ids.len() as u64;
                     if let Some(c) = cost.as_deref_mut() {
@@ -108,6 +126,7 @@ impl Walk<'_> {
                                     intersect_triangle(ro, rd, v0, v1, v2, tmin, s.bt[x])
                                 {
                                     if closer(h.t, p, s.bt[x], s.bp[x]) {
+                                        s.dirty |= 1 << i;
                                         (s.bt[x], s.bp[x], s.bu[x], s.bv[x]) = (h.t, p, h.u, h.v);
                                     }
                                 }
@@ -126,14 +145,19 @@ impl Walk<'_> {
                     }
                 }
             }
-            return;
+        } else {
+            match self.w {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `rows_avx2` needs AVX2 and POPCNT; `width()` is `Eight` only on CPUs
+                // that have both.
+                Width::Eight => unsafe { self.rows_avx2(&leaf, s, out, cost, n, live) },
+                _ => self.rows::<Vec4>(&leaf, s, out, cost, n, live),
+            }
         }
-        match self.w {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `rows_avx2` needs AVX2 and POPCNT; `width()` is `Eight` only on CPUs that
-            // have both.
-            Width::Eight => unsafe { self.rows_avx2(&leaf, s, out, cost, n, live) },
-            _ => self.rows::<Vec4>(&leaf, s, out, cost, n, live),
+        // The far bounds follow the closest hits (`hit_cut`).
+        if s.cut && s.dirty != 0 {
+            s.lower_depth(self.g.rows, self.g.cols);
+            n.depth_lowered += 1;
         }
     }
 
@@ -206,6 +230,18 @@ impl Walk<'_> {
                         continue;
                     }
                 }
+                if let Some((c, r)) = leaf.near {
+                    let (gx, gy, gz) = (ld(&s.gx, at), ld(&s.gy, at), ld(&s.gz, at));
+                    let along = gx * L::splat(c.x) + gy * L::splat(c.y) + gz * L::splat(c.z);
+                    let b = ld(&s.bt, at) * ld(&s.dl, at);
+                    let lim = b + b.abs() * L::splat(1e-5);
+                    let before = keep;
+                    keep &= L::bitmask((along - L::splat(r)).cmple(lim));
+                    n.hit_culled += u64::from((before & !keep).count_ones());
+                    if keep == 0 {
+                        continue;
+                    }
+                }
                 let d = [ld(&s.dx, at), ld(&s.dy, at), ld(&s.dz, at)];
                 let tmin = ld(&s.tmin, at);
                 if self.cfg.box_check {
@@ -274,6 +310,7 @@ impl Walk<'_> {
                                 let x = at + k;
                                 let t = h.t.lane(k);
                                 if closer(t, p, s.bt[x], s.bp[x]) {
+                                    s.dirty |= 1 << i;
                                     (s.bt[x], s.bp[x], s.bu[x], s.bv[x]) =
                                         (t, p, h.u.lane(k), h.v.lane(k));
                                 }
@@ -316,6 +353,8 @@ pub(super) struct Leaf {
     pub(super) cols: u64,
     /// Grid-frame centre and squared radius for the per-ray sphere check.
     pub(super) check: Option<(Vec3, f32)>,
+    /// Grid-frame centre and widened radius for the hit cut (closest hits).
+    pub(super) near: Option<(Vec3, f32)>,
     /// The leaf's range in the tree's triangle order.
     pub(super) tris: [u32; 2],
 }

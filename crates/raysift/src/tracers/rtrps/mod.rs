@@ -127,6 +127,14 @@ pub struct Config {
     /// test (ours: a row plane and a column plane meet in a whole line, the ray's backward
     /// extension included). Default true.
     pub depth_cull: bool,
+    /// Closest hits cut the walk (ours): a group's far bound shrinks to its rays' closest hits
+    /// so far once every ray has one (the depth cull then culls what lies behind them), and a
+    /// reproduced ray skips a leaf whose sphere lies wholly beyond its closest hit. Default
+    /// true.
+    pub hit_cut: bool,
+    /// Closest-hit groups visit nearer children first (ours: the child whose centre is nearer
+    /// along the grid's axis, so the hits that `hit_cut` uses come early). Default true.
+    pub near_first: bool,
     /// Inner spheres: `binary` (a binary tree over each part's leaves, bottom spheres of at most
     /// `cluster` leaves) or `flat` (one level of `cluster`-leaf spheres). Default `binary`.
     pub levels: Levels,
@@ -194,6 +202,8 @@ impl Default for Config {
             centre: Centre::Box,
             levels: Levels::Binary,
             depth_cull: true,
+            hit_cut: true,
+            near_first: true,
             ray_check: true,
             box_check: false,
             edge_cull: true,
@@ -277,6 +287,14 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "cull spheres behind a group's origin or past its rays' ends (ours)",
     },
     OptionDoc {
+        key: "hit_cut",
+        doc: "closest hits so far cut the group's far bound and each ray's leaves (ours)",
+    },
+    OptionDoc {
+        key: "near_first",
+        doc: "closest-hit groups visit nearer child spheres first (ours)",
+    },
+    OptionDoc {
         key: "levels",
         doc: "inner spheres: binary (a tree over each part's leaves) or flat (one level)",
     },
@@ -322,6 +340,8 @@ pub const PRESETS: &[Preset] = &[
             ("culling", "false"),
             ("tree", "false"),
             ("depth_cull", "false"),
+            ("hit_cut", "false"),
+            ("near_first", "false"),
             ("ray_check", "false"),
             ("edge_cull", "false"),
             ("max_slack", "1"),
@@ -368,6 +388,14 @@ pub const PRESETS: &[Preset] = &[
         name: "Möller form for every group",
         opts: &[("tri_test", "moller")],
     },
+    Preset {
+        name: "hit cut in the hierarchy's order, Möller form",
+        opts: &[("near_first", "false"), ("tri_test", "moller")],
+    },
+    Preset {
+        name: "near first without the hit cut",
+        opts: &[("hit_cut", "false")],
+    },
 ];
 
 crate::counters! {
@@ -398,6 +426,11 @@ crate::counters! {
         rays_reproduced,
         /// Reproduced rays whose line misses the leaf sphere (`ray_check`): no triangle test.
         ray_culled,
+        /// Reproduced rays whose closest hit so far is nearer than the leaf sphere
+        /// (`hit_cut`): no triangle test.
+        hit_culled,
+        /// Times a closest-hit group's far bound was lowered to its rays' hits (`hit_cut`).
+        depth_lowered,
         /// Reproduced rays that passed the sphere check but miss the leaf's triangle box
         /// within their `[tmin, tmax]` (`box_check`): no triangle test.
         box_culled,
