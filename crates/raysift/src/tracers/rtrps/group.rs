@@ -132,7 +132,15 @@ pub struct Scratch {
     pub(super) tris: Vec<TriFromOrigin<f32>>,
     /// A cone holding the group's directions (`edge_cull`).
     pub(super) cone: Option<RayCone>,
+    /// Any hit: each row's finished columns (by index).
     pub(super) done: [u64; MAX_FAN],
+    /// Any hit: finished rays per column (by index).
+    pub(super) col_done: [u8; MAX_FAN],
+    /// The rows and columns (by plane position) with a ray not yet finished: a sphere is
+    /// tested only by their planes (ours; all of them for closest hits).
+    pub(super) live: (u64, u64),
+    /// Plane positions of rows and columns, by index.
+    pub(super) pos: ([u8; MAX_FAN], [u8; MAX_FAN]),
     pub(super) rows: PlaneFan,
     pub(super) cols: PlaneFan,
     /// Depth cull of the current group: every ray has `tmin >= 0` and a direction `u.z > 0` in
@@ -169,6 +177,9 @@ impl Scratch {
             tris: Vec::new(),
             cone: None,
             done: [0; MAX_FAN],
+            col_done: [0; MAX_FAN],
+            live: (0, 0),
+            pos: ([0; MAX_FAN], [0; MAX_FAN]),
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
             depth: None,
@@ -245,6 +256,24 @@ impl Scratch {
 }
 
 impl Scratch {
+    /// Any hit: the rays of row `i` in columns `m` (by index) are finished; a row or column
+    /// whose rays are all finished leaves the live planes.
+    pub(super) fn finish(&mut self, i: usize, m: u64, rows: usize, cols: usize) {
+        self.done[i] |= m;
+        if self.done[i] == mask(cols) {
+            self.live.0 &= !(1 << self.pos.0[i]);
+        }
+        let mut b = m;
+        while b != 0 {
+            let j = b.trailing_zeros() as usize;
+            b &= b - 1;
+            self.col_done[j] += 1;
+            if usize::from(self.col_done[j]) == rows {
+                self.live.1 &= !(1 << self.pos.1[j]);
+            }
+        }
+    }
+
     /// Recomputes the far bounds of the rows whose hits improved, and lowers the group's
     /// (`hit_cut`): [`depth_range`]'s bound with each ray's closest hit `t` for its `tmax` (the
     /// same margins: a hit nearer than or tied with the closest so far lies at most that deep).
@@ -273,7 +302,7 @@ pub const ORIGIN_FORM_RAYS: usize = 16;
 pub const EDGE_CULL_RAYS: u32 = 16;
 
 /// Widest vector the leaves use (the group's rows are padded to it).
-pub(super) const MAX_LANES: usize = 8;
+pub(super) const MAX_LANES: usize = 4;
 
 pub(super) fn mask(n: usize) -> u64 {
     if n >= 64 {
@@ -510,6 +539,11 @@ fn sphere(
     cfg: &Config,
     n: &mut Counts,
 ) -> Option<(u64, u64)> {
+    // Planes whose rays are all finished (any hit) test nothing.
+    let parent = (parent.0 & s.live.0, parent.1 & s.live.1);
+    if parent.0 == 0 || parent.1 == 0 {
+        return None;
+    }
     n.spheres_visited += 1;
     if let Some(zmax) = s.depth {
         // Grid-frame depth of what the sphere holds, widened by the frame's rounding margin.
@@ -705,6 +739,14 @@ pub fn trace(
         None
     };
     s.done[..g.rows].fill(0);
+    s.col_done[..cols].fill(0);
+    s.live = (mask(g.rows), mask(cols));
+    for p in 0..g.rows {
+        s.pos.0[usize::from(s.rows.order[p])] = p as u8;
+    }
+    for p in 0..cols {
+        s.pos.1[usize::from(s.cols.order[p])] = p as u8;
+    }
     let mut live = nr;
     let full = (mask(g.rows), mask(cols));
     let w = Walk {

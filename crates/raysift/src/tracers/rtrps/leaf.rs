@@ -4,8 +4,6 @@
 
 use super::group::{Frame, Out, Scratch, Walk, EDGE_CULL_RAYS};
 use super::Counts;
-#[cfg(target_arch = "x86_64")]
-use crate::geom::lanes::F32x8;
 use crate::geom::lanes::{Lanes, Width};
 use crate::geom::{intersect_triangle, slab_lanes, TriFromOrigin};
 use crate::tracer::{closer, CostMut};
@@ -136,7 +134,7 @@ impl Walk<'_> {
                                     .is_some()
                                 {
                                     o[r - start] = true;
-                                    s.done[i] |= 1 << j;
+                                    s.finish(i, 1 << j, g.rows, g.cols);
                                     *live -= 1;
                                     break;
                                 }
@@ -161,8 +159,11 @@ impl Walk<'_> {
         }
     }
 
-    /// [`Self::rows`] eight lanes at a time, compiled for AVX2 and POPCNT (lane masks are
-    /// counted).
+    /// [`Self::rows`] four lanes at a time, compiled for AVX2 and POPCNT (VEX encoding; lane
+    /// masks are counted). Eight lanes ([`crate::geom::lanes::F32x8`]) measured 1.25× slower
+    /// on the bunny's area-light shadow grids: a row chunk's live lanes are few, and LLVM
+    /// keeps the eight-lane test's operands on the stack (BENCHMARKS.md § RTRPS, "Closest
+    /// hits cut the walk").
     ///
     /// # Safety
     /// The CPU must support AVX2 and POPCNT ([`lanes::width`] is [`Width::Eight`]).
@@ -177,7 +178,7 @@ impl Walk<'_> {
         n: &mut Counts,
         live: &mut usize,
     ) {
-        self.rows::<F32x8>(leaf, s, out, cost, n, live)
+        self.rows::<Vec4>(leaf, s, out, cost, n, live)
     }
 
     /// A leaf's reproduced rays, row by row and `L::N` columns at a time: the per-ray check,
@@ -320,6 +321,7 @@ impl Walk<'_> {
                     }
                     Out::Occluded(oc) => {
                         let tmax = ld(&s.tmax, at);
+                        let mut fin = 0u32;
                         for tri in &s.tris {
                             let m = tri.intersect_lanes_each(d, tmin, tmax).mask & keep;
                             if m == 0 {
@@ -331,12 +333,15 @@ impl Walk<'_> {
                                 b &= b - 1;
                                 oc[g.ray(i, ch + k) - start] = true;
                             }
-                            s.done[i] |= u64::from(m) << ch;
+                            fin |= m;
                             *live -= m.count_ones() as usize;
                             keep &= !m;
                             if keep == 0 {
                                 break;
                             }
+                        }
+                        if fin != 0 {
+                            s.finish(i, u64::from(fin) << ch, g.rows, g.cols);
                         }
                     }
                 }

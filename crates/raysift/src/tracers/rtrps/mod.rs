@@ -63,7 +63,7 @@
 //!   time (Table 2's "Möller" row) or through its common-origin form
 //!   ([`TriFromOrigin`](crate::geom::TriFromOrigin): the parts that depend only on the triangle
 //!   and the group's origin computed once per leaf visit, by the shared test's own operations,
-//!   so bit-identical), a row's reproduced rays eight (AVX2) or four at a time; `auto` picks by
+//!   so bit-identical), a row's reproduced rays four at a time; `auto` picks by
 //!   group size at the measured crossover (`group::ORIGIN_FORM_RAYS`, Fig. 10's rule). The
 //!   aligned ray-plane form (Eqs. 6–8) is not implemented: its arithmetic differs from the
 //!   shared test's, so the contract would allow it only as a cull before that test, which adds
@@ -152,7 +152,7 @@ pub struct Config {
     pub edge_cull: bool,
     /// The ray/triangle test of reproduced rays (§3.2, Table 2): `moller` (the shared test, one
     /// ray at a time), `origin` (its common-origin form, prepared once per leaf visit and run
-    /// eight or four rays at a time: bit-identical), or `auto` (`origin` for groups of at least
+    /// four rays at a time: bit-identical), or `auto` (`origin` for groups of at least
     /// `group::ORIGIN_FORM_RAYS` rays, the measured crossover). Default `auto`.
     pub tri_test: TriTest,
     /// Groups whose fitted row or column planes hold their rays only to a sine above this are
