@@ -145,21 +145,36 @@ fn fig11(spec: &str, origins: usize, shadow_only: bool) {
     for (what, rays, occl) in sets.into_iter().take(if shadow_only { 1 } else { 2 }) {
         for centre in ["box", "mean"] {
             let mut base = 0;
-            // (row, culling, tree, levels, depth cull, ray check, plane runs, edge cull): the
-            // paper's rows first (no plane runs, no edge cull), then ours one at a time.
+            // (row, culling, tree, levels, depth cull, ray check, plane runs, edge cull, live
+            // planes and hit cut): the paper's rows first (no plane runs, no edge cull), then
+            // ours one at a time.
             let (f, t) = ("false", "true");
-            for (name, c, tr, lv, dc, rc, rg, ec) in [
-                ("all planes", f, f, "flat", f, f, f, f),
-                ("culling", t, f, "flat", f, f, f, f),
-                ("tree", f, t, "flat", f, f, f, f),
-                ("culling+tree", t, t, "flat", f, f, f, f),
-                ("+ binary levels", t, t, "binary", f, f, f, f),
-                ("+ depth cull", t, t, "binary", t, f, f, f),
-                ("+ ray check", t, t, "binary", t, t, f, f),
-                ("+ plane runs", t, t, "binary", t, t, t, f),
-                ("+ edge cull (default)", t, t, "binary", t, t, t, t),
+            for (name, c, tr, lv, dc, rc, rg, ec, lp) in [
+                ("all planes", f, f, "flat", f, f, f, f, f),
+                ("culling", t, f, "flat", f, f, f, f, f),
+                ("tree", f, t, "flat", f, f, f, f, f),
+                ("culling+tree", t, t, "flat", f, f, f, f, f),
+                ("+ binary levels", t, t, "binary", f, f, f, f, f),
+                ("+ depth cull", t, t, "binary", t, f, f, f, f),
+                ("+ ray check", t, t, "binary", t, t, f, f, f),
+                ("+ plane runs", t, t, "binary", t, t, t, f, f),
+                ("+ edge cull", t, t, "binary", t, t, t, t, f),
+                (
+                    "+ live planes, hit cut, near first (default)",
+                    t,
+                    t,
+                    "binary",
+                    t,
+                    t,
+                    t,
+                    t,
+                    t,
+                ),
             ] {
                 let o = [
+                    ("live_planes", lp),
+                    ("hit_cut", lp),
+                    ("near_first", lp),
                     ("culling", c),
                     ("tree", tr),
                     ("centre", centre),

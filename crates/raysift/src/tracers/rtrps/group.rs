@@ -294,8 +294,9 @@ impl Scratch {
 }
 
 /// Groups of at least this many rays test reproduced rays through the common-origin form when
-/// `tri_test=auto` (the crossover measured in BENCHMARKS.md § RTRPS, "Table 2 / Fig. 10").
-pub const ORIGIN_FORM_RAYS: usize = 16;
+/// `tri_test=auto` (the crossover measured in BENCHMARKS.md § RTRPS, "Table 2 / Fig. 10": with
+/// four lanes, the form is no slower from 2×2 groups on).
+pub const ORIGIN_FORM_RAYS: usize = 4;
 
 /// Leaves whose hit rows × hit columns cover at least this many rays go through the edge cull
 /// first (BENCHMARKS.md § RTRPS).
@@ -539,8 +540,12 @@ fn sphere(
     cfg: &Config,
     n: &mut Counts,
 ) -> Option<(u64, u64)> {
-    // Planes whose rays are all finished (any hit) test nothing.
-    let parent = (parent.0 & s.live.0, parent.1 & s.live.1);
+    // Planes whose rays are all finished (any hit, `live_planes`) test nothing.
+    let parent = if cfg.live_planes {
+        (parent.0 & s.live.0, parent.1 & s.live.1)
+    } else {
+        parent
+    };
     if parent.0 == 0 || parent.1 == 0 {
         return None;
     }

@@ -81,8 +81,16 @@
 //! - an exact per-ray box check (`box_check`, off by default): the shared slab interval of the
 //!   leaf's triangles' box, which the box gate puts every hit in (measured slower than the
 //!   triangle tests it removes);
-//! - the sphere order is the hierarchy's (no near-to-far order; closest hits keep the smallest
-//!   `t` by [`closer`](crate::tracer::closer)).
+//! - closest hits cut the walk (`hit_cut`): a reported hit at `t` is a point of the leaf's
+//!   sphere at distance `t·|d|` along the ray's unit direction, so a reproduced ray whose
+//!   closest hit so far is nearer than the sphere skips the leaf, and once every ray of a row
+//!   has a hit the depth cull's far bound drops to the rows' deepest hit (both with rounding
+//!   margins, in `leaf.rs` and `Scratch::lower_depth`); closest-hit groups visit nearer
+//!   children first (`near_first`: by the grid depth of their centres), which is what makes
+//!   the cut bite (BENCHMARKS.md § RTRPS, "Closest hits cut the walk"); ties still go by
+//!   [`closer`](crate::tracer::closer);
+//! - any-hit groups drop a row or column plane from every later sphere test once all its
+//!   rays have a hit (`live_planes`).
 
 mod group;
 mod leaf;
@@ -135,6 +143,9 @@ pub struct Config {
     /// Closest-hit groups visit nearer children first (ours: the child whose centre is nearer
     /// along the grid's axis, so the hits that `hit_cut` uses come early). Default true.
     pub near_first: bool,
+    /// Any-hit groups test spheres only against the rows and columns that still have a ray
+    /// without a hit (ours). Default true.
+    pub live_planes: bool,
     /// Inner spheres: `binary` (a binary tree over each part's leaves, bottom spheres of at most
     /// `cluster` leaves) or `flat` (one level of `cluster`-leaf spheres). Default `binary`.
     pub levels: Levels,
@@ -204,6 +215,7 @@ impl Default for Config {
             depth_cull: true,
             hit_cut: true,
             near_first: true,
+            live_planes: true,
             ray_check: true,
             box_check: false,
             edge_cull: true,
@@ -295,6 +307,10 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
         doc: "closest-hit groups visit nearer child spheres first (ours)",
     },
     OptionDoc {
+        key: "live_planes",
+        doc: "any-hit groups drop rows and columns whose rays all have a hit from the plane tests (ours)",
+    },
+    OptionDoc {
         key: "levels",
         doc: "inner spheres: binary (a tree over each part's leaves) or flat (one level)",
     },
@@ -342,6 +358,7 @@ pub const PRESETS: &[Preset] = &[
             ("depth_cull", "false"),
             ("hit_cut", "false"),
             ("near_first", "false"),
+            ("live_planes", "false"),
             ("ray_check", "false"),
             ("edge_cull", "false"),
             ("max_slack", "1"),
