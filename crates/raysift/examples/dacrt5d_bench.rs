@@ -5,8 +5,10 @@
 //! cargo run --release -p raysift --example dacrt5d_bench -- SCENE_SPEC \
 //!     [--width W] [--random N] [--bounces B] [--repeat R] [--threads N] \
 //!     [--tracer "NAME key=value ..."]... [--counters] [--eye X,Y,Z --look X,Y,Z] [--fov F]
-//!     [--light X,Y,Z]
+//!     [--light X,Y,Z] [--only LABEL]
 //! ```
+//!
+//! `--only LABEL` runs only the batches whose label is `LABEL` (e.g. `"camera shuffled"`).
 //!
 //! Batches: W×W pinhole camera rays (default framing, or `--eye`/`--look`), the same rays shuffled (no layout),
 //! 2×2 jittered samples per pixel of a (W/2)² image, image-shaped and shuffled,
@@ -38,6 +40,7 @@ fn run() -> Res<()> {
     let (mut width, mut random, mut bounces, mut repeat, mut threads) =
         (512u32, 1usize << 18, 3usize, 3usize, 0usize);
     let mut counters = false;
+    let mut only: Option<String> = None;
     let (mut eye, mut look, mut fov, mut light_at) = (None, None, 45.0f32, None);
     let vec3 = |v: &String| -> Res<glam::Vec3> {
         let c: Vec<f32> = v
@@ -60,6 +63,7 @@ fn run() -> Res<()> {
             "--threads" => threads = val()?.parse()?,
             "--tracer" => specs.push(val()?.clone()),
             "--counters" => counters = true,
+            "--only" => only = Some(val()?.clone()),
             "--eye" => eye = Some(vec3(val()?)?),
             "--look" => look = Some(vec3(val()?)?),
             "--fov" => fov = val()?.parse()?,
@@ -135,6 +139,9 @@ fn run() -> Res<()> {
         println!("| batch | rays | tracer | Mrays/s | ms | ray/tri per ray | cull tests per ray | survivors per cull | terminated |");
         println!("|---|---|---|---|---|---|---|---|---|");
         for (label, rays, any) in &batches {
+            if only.as_ref().is_some_and(|o| o != label) {
+                continue;
+            }
             let mut best = vec![f64::INFINITY; ts.len()];
             let mut work = vec![raysift::Stats::default(); ts.len()];
             let mut want: Option<(HitBatch, Vec<bool>)> = None;

@@ -9,7 +9,7 @@ use crate::geom::{intersect_triangle, intersect_triangle4, PackedRay, Tri4, Vec3
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
-use crate::tracers::dacrt::partition::gather_block;
+use crate::tracers::dacrt::partition::{gather_block, prefetch};
 
 /// A ray in the recursion (48 bytes, swapped whole): its origin, direction and `tmin` copied
 /// from the batch (clips and leaves read them here, in node order, not in the batch's
@@ -55,6 +55,9 @@ pub(super) enum Given {
     /// Its rays' bound and their original origins' scale (a box split's clip pass): it culls.
     Bound(Bound5, f32),
 }
+
+/// How many records ahead a leaf asks for their answers.
+const LEAF_PREFETCH: usize = 4;
 
 /// Leaves with at most this many triangles gather them into groups of four.
 pub(super) const LEAF4_MAX: usize = 64;
@@ -305,10 +308,29 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
         let groups = (nt <= LEAF4_MAX).then_some(&groups[..ng]);
         let mut tests = 0u64;
         for p in r0..r1 {
+            if p + LEAF_PREFETCH < r1 {
+                self.prefetch_answer(self.recs[p + LEAF_PREFETCH].id as usize);
+            }
             let rec = self.recs[p];
             tests += self.leaf_ray(&rec, groups, nt);
         }
         self.st.ray_tri += tests;
+    }
+
+    /// Asks for ray `id`'s answer so far (in ray order, scattered when the batch's order is not
+    /// coherent: shuffled camera rays, BENCHMARKS.md § "dacrt5d: bundles through the kept
+    /// levels").
+    #[inline(always)]
+    fn prefetch_answer(&self, id: usize) {
+        if ANY {
+            prefetch(self.occ, id);
+            prefetch(&self.rays.tmax, self.base + id);
+        } else {
+            prefetch(self.t, id);
+            prefetch(self.prim, id);
+            prefetch(self.u, id);
+            prefetch(self.v, id);
+        }
     }
 
     /// A leaf's triangles in groups of four, when they are at most [`LEAF4_MAX`] (else `0`
