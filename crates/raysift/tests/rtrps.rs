@@ -397,7 +397,10 @@ fn closest_hits_cut_the_walk() {
         assert_eq!(raysift::testkit::first_difference(&h_off, &h_on), None);
         assert_eq!(raysift::testkit::first_difference(&h_off, &h_order), None);
         assert_eq!(off.get("hit_culled") + off.get("depth_culled"), 0);
-        assert!(on.get("hit_culled") > 0 && on.get("depth_culled") > 0, "{on:?}");
+        assert!(
+            on.get("hit_culled") > 0 && on.get("depth_culled") > 0,
+            "{on:?}"
+        );
         assert!(
             2 * on.get("tri_tests") < off.get("tri_tests")
                 && on.get("spheres_visited") < off.get("spheres_visited"),

@@ -318,15 +318,12 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     }
 
     /// Asks for ray `id`'s answer so far (in ray order, scattered when the batch's order is not
-    /// coherent: shuffled camera rays, BENCHMARKS.md § "dacrt5d: bundles through the kept
-    /// levels").
+    /// coherent: shuffled camera rays, BENCHMARKS.md § "dacrt5d: leaves prefetch their rays'
+    /// answers").
     #[inline(always)]
     fn prefetch_answer(&self, id: usize) {
-        if ANY {
-            prefetch(self.occ, id);
-            prefetch(&self.rays.tmax, self.base + id);
-        } else {
-            prefetch(self.t, id);
+        self.prefetch_best(id);
+        if !ANY {
             prefetch(self.prim, id);
             prefetch(self.u, id);
             prefetch(self.v, id);

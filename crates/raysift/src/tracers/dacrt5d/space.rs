@@ -487,7 +487,7 @@ impl<'a, const ANY: bool> Task<'a, ANY> {
     /// Asks for the best hit so far of ray `id` (the z-buffer is in ray order, the records in
     /// node order).
     #[inline(always)]
-    fn prefetch_best(&self, id: usize) {
+    pub(super) fn prefetch_best(&self, id: usize) {
         if ANY {
             prefetch(self.occ, id);
             prefetch(&self.rays.tmax, self.base + id);

@@ -253,9 +253,7 @@ impl Scratch {
             self.bv.resize(n, 0.0);
         }
     }
-}
 
-impl Scratch {
     /// Any hit: the rays of row `i` in columns `m` (by index) are finished; a row or column
     /// whose rays are all finished leaves the live planes.
     pub(super) fn finish(&mut self, i: usize, m: u64, rows: usize, cols: usize) {
@@ -609,8 +607,9 @@ impl Walk<'_> {
         let depth = |c: Vec3| f.m[2].dot(c);
         let run = |r: std::ops::Range<u32>| {
             let (a, b) = (r.start, r.end);
-            let back =
-                near && b > a + 1 && depth(tree.leaf_c[b as usize - 1]) < depth(tree.leaf_c[a as usize]);
+            let back = near
+                && b > a + 1
+                && depth(tree.leaf_c[b as usize - 1]) < depth(tree.leaf_c[a as usize]);
             r.map(move |k| if back { a + b - 1 - k } else { k })
         };
         if part.inner.is_empty() {
@@ -800,7 +799,8 @@ pub fn trace(
                 // Nearer node first for closest hits (`near_first`), by world centres along the
                 // grid's axis.
                 let (x, y) = if near
-                    && frame[2].dot(tree.pnode_c[y as usize]) < frame[2].dot(tree.pnode_c[x as usize])
+                    && frame[2].dot(tree.pnode_c[y as usize])
+                        < frame[2].dot(tree.pnode_c[x as usize])
                 {
                     (y, x)
                 } else {
