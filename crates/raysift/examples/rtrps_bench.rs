@@ -366,6 +366,11 @@ fn table6(spec: &str, frames: u32) {
             "rtrps",
             opts(&[("ray_check", "false")]),
         ),
+        (
+            "rtrps, hierarchy's order",
+            "rtrps",
+            opts(&[("near_first", "false")]),
+        ),
         ("rtrps, no hit cut", "rtrps", opts(&[("hit_cut", "false")])),
         (
             "rtrps, no hit cut, hierarchy's order",
