@@ -350,8 +350,8 @@ fn depth_cull_and_binary_levels_remove_work() {
 }
 
 /// Closest hits cut the walk (`hit_cut`, `near_first`): a camera looking through a stack of
-/// 16 layers, each present twice (the duplicate with the larger id, so ties go to the first),
-/// and a layer bent towards the camera, with directions of length 1e-3, 1 and 1e3 (the cut
+/// 16 layers, the even ones present twice (the duplicate has the larger id: ties must go to the
+/// first), the front one bent towards the camera, with directions of length 1e-3, 1 and 1e3 (the cut
 /// compares `t·|d|` with distances along the unit direction). The cut removes triangle tests,
 /// culls spheres behind the front layer, and answers stay equal to `naive`'s in every preset.
 #[test]
