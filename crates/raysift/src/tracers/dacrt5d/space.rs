@@ -40,6 +40,13 @@ pub(super) struct TriSplit {
     pub(super) second: SetBounds,
 }
 
+/// A triangle box's centroid doubled (`lo + hi`): only the centroids' order matters to the
+/// splits (`split_set` and the kept levels').
+#[inline(always)]
+pub(super) fn centroid(b: &[f32; 6]) -> Vec3 {
+    Vec3::new(b[0] + b[3], b[1] + b[4], b[2] + b[5])
+}
+
 /// A triangle set's union box and its centroids' bounds (doubled, as `split_set` takes them).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct SetBounds {
@@ -514,8 +521,6 @@ pub(super) fn split_set<const CB: bool>(
     up: impl Fn(usize) -> bool,
 ) -> Option<TriSplit> {
     let nt = idx.len();
-    // Centroids doubled (`lo + hi`): only their order matters.
-    let centroid = |bx: &[f32; 6]| Vec3::new(bx[0] + bx[3], bx[1] + bx[4], bx[2] + bx[5]);
     let (clo, chi) = cb.unwrap_or_else(|| {
         let (mut clo, mut chi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for &t in idx.iter() {

@@ -10,16 +10,16 @@
 //!
 //! Two ways to make them (`top_split`), both leaves first for the boxes and centroid bounds:
 //! - `morton` (default): the centroids in Morton order (`geom::morton`, a cubic grid of 1024
-//!   cells a side over their largest extent), one sort; a node's range of the sorted codes splits where its
-//!   highest differing bit changes (a cut at the middle of a grid cell on that bit's axis, as a
-//!   linear BVH builder makes it), down to nodes of at most `top_leaf` triangles or of one
-//!   code. A sort and a pass over the leaves instead of a pass per level: 73–75 ms on the 871K
+//!   cells a side over their largest extent), one sort; a node's range of the sorted codes
+//!   splits where its highest differing bit changes (a cut at the middle of a grid cell on that
+//!   bit's axis, as a linear BVH builder makes it), down to nodes of at most `top_leaf`
+//!   triangles or of one code. A sort and a pass over the leaves instead of a pass per level: 73–75 ms on the 871K
 //!   dragon, where the per-call rule over ids took 105–220 ms (11M gathers of scattered boxes).
 //! - `middle`: the per-call splits' rule (the middle of the centroids' longest extent,
 //!   `space::split_set`) on centroids quantized to 16 bits, moving 12-byte items level by level
 //!   (each read and written whole): traces 0.88–1.08× `morton`'s, batch by batch (the
-//!   dragon's camera 0.95×, Sponza's shadow rays 1.08×), a build 2.5× dearer (175–199 against 73–75 ms on the
-//!   dragon): BENCHMARKS.md § "dacrt5d: bundles through the kept levels".
+//!   dragon's camera 0.95×, Sponza's shadow rays 1.08×), a build 2.5× dearer (175–199 against
+//!   73–75 ms on the dragon): BENCHMARKS.md § "dacrt5d: bundles through the kept levels".
 //!
 //! Both use one scale on every axis (a cubic Morton grid; 16-bit centroids comparable across
 //! axes): with one per axis the longest quantized extent was not the longest one, and Sponza's
@@ -32,10 +32,10 @@
 //! Memory (deterministic): the triangle order, `4·T`, and at most `4·T / (top_leaf + 1) + 1`
 //! nodes of 64 bytes, reserved exactly (a spread scene needs no more: every inner node holds
 //! more than `top_leaf` triangles, and the deepest inner nodes are disjoint; where splits peel a
-//! few triangles at a time, the levels stop at the reservation, `Top::full`); while building, the sort keys (`8·T`, `morton`)
-//! or the items (`12·T`, `middle`), freed.
+//! few triangles at a time, the levels stop at the reservation, `Top::full`); while building,
+//! the sort keys (`8·T`, `morton`) or the items (`12·T`, `middle`), freed.
 
-use super::space::SetBounds;
+use super::space::{centroid, SetBounds};
 use crate::geom::morton;
 use crate::geom::Vec3;
 use crate::mem::reserve_exact_huge;
@@ -88,12 +88,6 @@ pub enum TopSplit {
 struct Item {
     q: [u16; 3],
     id: u32,
-}
-
-/// Centroids doubled (`lo + hi`), as the per-call splits take them.
-#[inline(always)]
-fn centroid(b: &[f32; 6]) -> Vec3 {
-    Vec3::new(b[0] + b[3], b[1] + b[4], b[2] + b[5])
 }
 
 /// The scale that maps the largest extent onto `0..=65535`, the same on every axis (so the
