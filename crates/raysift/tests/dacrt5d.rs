@@ -137,6 +137,92 @@ fn batches_of_one_ray_and_unbounded_rays() {
     check(&s, &rays);
 }
 
+/// Rays from `eye` through every vertex and edge midpoint of `s`'s triangles (hits on the
+/// triangles' boxes and on shared edges and vertices, as seen from the eye), in a shuffled
+/// order, `tmin` a thousandth of the scene's size and, for every third, `tmax` half-way.
+fn rays_from(s: &Scene, eye: Vec3) -> RayBatch {
+    let tris = s.triangles();
+    let size = s.bounds().extent().max_element();
+    let mut v = Vec::new();
+    for t in 0..tris.len() {
+        let [a, b, c] = tris.get(t);
+        for p in [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5] {
+            if p != eye {
+                v.push(p - eye);
+            }
+        }
+    }
+    let n = v.len();
+    RayBatch::from_rays((0..n).map(|i| {
+        let d = v[i * 7919 % n];
+        Ray {
+            origin: eye,
+            dir: d,
+            tmin: 1e-3 * size,
+            tmax: if i % 3 == 0 {
+                0.5 * d.length() * size
+            } else {
+                f32::INFINITY
+            },
+        }
+    }))
+}
+
+/// The eye pass (`eye.rs`: a task's rays all from one point, traced in its frame): every
+/// preset equals `naive` on rays through the mesh's vertices and edge midpoints from eyes
+/// outside it, on one of its vertices (triangles around the eye, tested against every ray)
+/// and inside it, at scales 1e-3 to 1e3 far from the origin; the counters show when it runs:
+/// not with `eye=false`, not from inside the scene's box unless `eye_inside`, not for fewer
+/// rays than `eye_ratio` per triangle.
+#[test]
+fn eye_pass_from_one_point() {
+    for (k, scale) in [1e-3f32, 1.0, 1e3].into_iter().enumerate() {
+        let mut s = procedural::icosphere(320);
+        let off = Vec3::new(3.0, -2.0, 1.0) * scale * 10.0;
+        s.set_transform(
+            0,
+            glam::Affine3A::from_scale_rotation_translation(
+                Vec3::splat(scale),
+                glam::Quat::from_rotation_y(0.3 * k as f32),
+                off,
+            ),
+        )
+        .unwrap();
+        let b = s.bounds();
+        let vertex = s.triangles().get(17)[1];
+        for (eye, inside) in [
+            (b.max + b.extent() * 0.7, false),
+            (b.center() - Vec3::new(0.1, 2.5, 0.3) * b.extent(), false),
+            (vertex, true),
+            (b.center() + b.extent() * 0.01, true),
+        ] {
+            let rays = rays_from(&s, eye);
+            let n = rays.len() as u64;
+            check(&s, &rays);
+            let on = stats(&s, &rays, &[("eye_ratio", "0"), ("eye_inside", "true")]);
+            assert_eq!(on.work.get("eye_rays"), n, "{:?}", on.work);
+            assert!(
+                on.work.get("ray_tri") < n * s.len() as u64 / 10,
+                "{:?}",
+                on.work
+            );
+            if eye == vertex {
+                assert!(on.work.get("eye_near") > 0, "{:?}", on.work);
+            }
+            let def = stats(&s, &rays, &[]);
+            assert_eq!(
+                def.work.get("eye_rays"),
+                if inside { 0 } else { n },
+                "{eye}"
+            );
+            let off = stats(&s, &rays, &[("eye", "false")]);
+            assert_eq!(off.work.get("eye_rays"), 0);
+            let few = stats(&s, &rays, &[("eye_ratio", "1e6")]);
+            assert_eq!(few.work.get("eye_rays"), 0);
+        }
+    }
+}
+
 fn stats(s: &Scene, rays: &RayBatch, kv: &[(&str, &str)]) -> Stats {
     let _g = serial();
     let mut t = tracers::create("dacrt5d", &opts(kv)).unwrap();
@@ -398,7 +484,8 @@ fn measure(f: impl FnOnce()) -> usize {
     TOTAL.load(Relaxed) - t0
 }
 
-/// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits),
+/// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits;
+/// `64·R` and `12·(⌊R_k/4⌋ + 7)` per task of `R_k` rays in the eye pass, which keeps no levels),
 /// plus, when its rays start from the kept levels (box splits: shared rays and handed-over
 /// bundles alike), those levels (`4·T` and `64·(4·T/(top_leaf + 1) + 1)`) and their build's
 /// sort keys (`8·T`, freed), whatever the scene's shape, the rays and the options; a second
@@ -417,6 +504,7 @@ fn memory_is_a_deterministic_linear_function() {
             let random = random_in_box(&scene.bounds(), r, 5);
             for (rays, kv) in [
                 (&cam, &[("cull", "frustum")][..]),
+                (&cam, &[("eye_ratio", "0")][..]),
                 (&random, &[("cull", "cone")][..]),
                 (&random, &[("stop", "fixed"), ("spatial", "false")][..]),
             ] {
@@ -454,10 +542,17 @@ fn memory_is_a_deterministic_linear_function() {
                 }
                 let [prepare, first, again, held] = m;
                 // Box splits (on unless `spatial=false`) keep 36 B more per ray: packed records.
-                let per_ray = if kv.contains(&("spatial", "false")) {
-                    48
+                // The eye pass (a camera's rays with `eye_ratio` 0) instead keeps 64 B per ray
+                // and 12 B per bucket (at most ⌊R_k / 4⌋ + 7 per task of R_k rays).
+                let eye = kv.contains(&("eye_ratio", "0"));
+                let (per_ray, buckets) = if eye {
+                    let chunk = r.div_ceil(tasks);
+                    let shares = (0..r).step_by(chunk).map(|s| chunk.min(r - s));
+                    (64, shares.map(|k| 12 * (k / 4 + 7)).sum())
+                } else if kv.contains(&("spatial", "false")) {
+                    (48, 0)
                 } else {
-                    84
+                    (84, 0)
                 };
                 // The first call that walks the kept levels makes them (`top_leaf` 8): the
                 // triangle order and at most 4·T/9 + 1 nodes of 64 B, held; the sort keys, freed.
@@ -470,17 +565,17 @@ fn memory_is_a_deterministic_linear_function() {
                 };
                 assert_eq!(
                     built > 0,
-                    !kv.contains(&("spatial", "false")),
+                    !kv.contains(&("spatial", "false")) && !eye,
                     "{kv:?}: box splits walk the kept levels"
                 );
                 assert_eq!(prepare, 24 * t, "{kv:?}");
                 assert_eq!(
                     first,
-                    4 * t * tasks + per_ray * r + top + keys,
+                    4 * t * tasks + per_ray * r + buckets + top + keys,
                     "{kv:?} tasks {tasks}"
                 );
                 assert_eq!(again, 0, "{kv:?}");
-                assert_eq!(held, 24 * t + 4 * t * tasks + per_ray * r + top);
+                assert_eq!(held, 24 * t + 4 * t * tasks + per_ray * r + buckets + top);
             }
         }
     }

@@ -115,6 +115,53 @@ pub fn segment_view(light: Vec3, o: Vec3, d: Vec3, tmax: f32) -> Option<SegmentV
     })
 }
 
+/// A ray starting at the frame's point itself (its origin bitwise the light, or the eye of
+/// `dacrt5d`'s eye pass, and `tmin >= 0`): every point of it lies exactly along `d` from the
+/// point, so it is a segment of slack 0 seen in the direction of `d` rather than of its
+/// origin. Its face and face coordinates (those of `d`, the face of the largest `|d_k|`,
+/// the first on ties, as [`segment_view`]) and `|d_k|`: a hit at `t` has the face-axis
+/// coordinate `t·|d_k|`, exact in f64 (a product of two f32). `None` for a zero or
+/// non-finite direction.
+pub fn ray_view(d: Vec3) -> Option<RayView> {
+    if !d.is_finite() {
+        return None;
+    }
+    let w = d.as_dvec3();
+    let m = w.abs();
+    let k = if m.x >= m.y && m.x >= m.z {
+        0
+    } else if m.y >= m.z {
+        1
+    } else {
+        2
+    };
+    let x = m[k];
+    if !(x > 0.0) {
+        return None;
+    }
+    let (k1, k2) = others(k);
+    let inv = 1.0 / x;
+    Some(RayView {
+        face: 2 * k + (w[k] < 0.0) as usize,
+        a: w[k1] * inv,
+        b: w[k2] * inv,
+        axis: x,
+    })
+}
+
+/// A ray from the frame's point, in its frame ([`ray_view`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayView {
+    /// Cube face (`0..6`).
+    pub face: usize,
+    /// Face coordinates of the direction, in `[-1, 1]`.
+    pub a: f64,
+    /// Second face coordinate.
+    pub b: f64,
+    /// `|d_k|` along the face's axis: a point at `t` has the face-axis coordinate `t·axis`.
+    pub axis: f64,
+}
+
 /// A segment in the light's frame: its face, face coordinates (of its origin's direction) and
 /// an upper bound on the face-axis coordinate (from the light) of every point of it.
 #[derive(Clone, Copy, Debug, PartialEq)]

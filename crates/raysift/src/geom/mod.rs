@@ -28,7 +28,9 @@ pub use cone_frustum::ConeFrustum;
 pub use cone_triangle::{cone_triangle, ConeF64};
 pub use conebox::{cone_box_overlap, ConeQuery};
 pub use glam::{Vec3, Vec3A};
-pub use light_space::{segment_slack, segment_view, Footprint, LightView, SegmentView};
+pub use light_space::{
+    ray_view, segment_slack, segment_view, Footprint, LightView, RayView, SegmentView,
+};
 pub use projection::{PixelEdges, PixelProjection, RectLanes};
 pub use ray_cone::RayCone;
 pub use shapes::{Cone, Plane, Sphere};

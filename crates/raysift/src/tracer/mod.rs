@@ -38,7 +38,7 @@ pub use par::{par_occlusion_bands, par_occlusion_chunks, par_ray_bands, par_ray_
 
 /// Most counters a [`Counters`] holds (a tracer's counter struct is checked against it when
 /// compiled).
-pub const MAX_COUNTERS: usize = 24;
+pub const MAX_COUNTERS: usize = 32;
 
 /// Named counters, in the order a tracer declared them. Made from a tracer's counter struct
 /// ([`CounterSet::to_counters`]) once per call, never in a hot loop; a fixed array, so reporting

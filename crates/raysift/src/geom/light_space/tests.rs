@@ -160,3 +160,86 @@ fn slack_refuses_what_the_pass_cannot_use() {
     assert!((s.a + 2.0 / 3.0).abs() < 1e-12 && (s.b + 0.5).abs() < 1e-12);
     assert!((s.depth - 3.0).abs() < 1e-9);
 }
+
+/// Rays from the frame's point itself (the eye pass of `dacrt5d`): every hit the shared test
+/// reports lies where the eye pass looks for it. The triangle is near the point, or its
+/// footprint on the ray's face holds the direction's coordinates and starts no deeper than
+/// the hit's face-axis coordinate `t·|d_k|` (so a ray whose best hit is nearer than `x0` skips
+/// the triangle exactly). Rays through the triangles' corners and edge midpoints (hits on the
+/// boxes' boundaries), directions on cube edges and axes (face ties), lengths from 1e-3 to 1e3,
+/// scales from 1e-4 to 1e4, eyes far from the origin. Not vacuous: most pairs are culled.
+#[test]
+fn every_eye_ray_hit_is_inside_its_footprint() {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(17);
+    let (mut hits, mut far_hits, mut far_pairs, mut culled) = (0u64, 0u64, 0u64, 0u64);
+    for round in 0..300 {
+        let scale = 10f32.powi(rng.gen_range(-4..=4));
+        let eye = if round % 3 == 0 {
+            Vec3::new(1e3, -2e3, 5e2) * scale
+        } else {
+            around(&mut rng, scale)
+        };
+        let mut tris = Vec::new();
+        for _ in 0..80 {
+            let k = scale * rng.gen_range(0.0..1.5);
+            let c = eye + around(&mut rng, k);
+            let size = scale * 10f32.powf(rng.gen_range(-3.0..0.3));
+            tris.push([0; 3].map(|_| c + around(&mut rng, size)));
+        }
+        let scale_all = tris
+            .iter()
+            .flatten()
+            .chain([&eye])
+            .fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+        let view = LightView::new(eye, 0.0, scale_all as f64, 0.0).unwrap();
+        for _ in 0..60 {
+            let d = if rng.gen() {
+                let t = tris[rng.gen_range(0..tris.len())];
+                let p = if rng.gen() {
+                    t[rng.gen_range(0..3)]
+                } else {
+                    (t[0] + t[1]) * 0.5
+                };
+                p - eye
+            } else {
+                around(&mut rng, 1.0)
+            } * 10f32.powi(rng.gen_range(-3..=3));
+            let Some(r) = ray_view(d) else {
+                continue;
+            };
+            assert!(r.a.abs() <= 1.0 && r.b.abs() <= 1.0);
+            let tmin = if rng.gen() { 0.0 } else { 1e-3 };
+            for t in &tris {
+                let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                let near = view.near(lo, hi);
+                let fp = (!near).then(|| view.footprint(lo, hi, r.face)).flatten();
+                let holds = |f: &Footprint| {
+                    f.a[0] <= r.a && r.a <= f.a[1] && f.b[0] <= r.b && r.b <= f.b[1]
+                };
+                if !near {
+                    far_pairs += 1;
+                    culled += !fp.as_ref().is_some_and(holds) as u64;
+                }
+                if let Some(h) = intersect_triangle(eye, d, t[0], t[1], t[2], tmin, f32::INFINITY) {
+                    hits += 1;
+                    if !near {
+                        far_hits += 1;
+                        let x = h.t as f64 * r.axis;
+                        assert!(
+                            fp.as_ref().is_some_and(|f| holds(f) && f.x0 <= x),
+                            "hit outside its footprint: eye {eye} d {d} tri {t:?} {fp:?} {r:?} x {x}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        hits > 2000 && far_hits > hits / 2,
+        "{hits} hits, {far_hits} far"
+    );
+    assert!(
+        culled > far_pairs / 2,
+        "{culled} of {far_pairs} far pairs culled"
+    );
+}

@@ -21,7 +21,7 @@
 
 use super::scratch::reuse;
 use super::{clock, ns_since, Counts, Dacrt};
-use crate::geom::{intersect_triangle, segment_slack, segment_view, LightView};
+use crate::geom::{intersect_triangle, segment_slack, segment_view, Footprint, LightView};
 use crate::rays::RayBatch;
 use crate::scene::TriangleSoup;
 use crate::tracer::CostMut;
@@ -95,7 +95,7 @@ impl LightScratch {
 }
 
 /// One face's grid: buckets `first..first + nx·ny`, row-major, over the face coordinates
-/// `[a0, a0 + nx/sa] × [b0, b0 + ny/sb]` of its segments.
+/// `[a0, a0 + nx/sa] × [b0, b0 + ny/sb]` of its points.
 #[derive(Clone, Copy, Debug, Default)]
 struct FaceGrid {
     first: usize,
@@ -113,18 +113,170 @@ impl FaceGrid {
     /// The column of coordinate `a` (monotone in `a`, clamped to the grid).
     #[inline]
     fn col(&self, a: f64) -> usize {
-        (((a - self.a0) * self.sa).floor().max(0.0) as usize).min(self.nx - 1)
+        // `max` then the cast: the floor of a non-negative value (a NaN goes to 0), no libm call.
+        (((a - self.a0) * self.sa).max(0.0) as usize).min(self.nx - 1)
     }
 
     #[inline]
     fn row(&self, b: f64) -> usize {
-        (((b - self.b0) * self.sb).floor().max(0.0) as usize).min(self.ny - 1)
+        (((b - self.b0) * self.sb).max(0.0) as usize).min(self.ny - 1)
     }
 }
 
-/// The buckets of a share of `n` rays at `per` rays per bucket: at most this many (each face
-/// has at most `max(1, n_f / per)`), plus one for `start`'s end.
-pub(super) fn bucket_cap(n: usize, per: usize) -> usize {
+/// The bucket grids of the six cube faces around one point (a light, or the eye of
+/// `dacrt5d`'s eye pass): shared by both passes.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Faces {
+    grids: [FaceGrid; 6],
+    used: [usize; 6],
+    nused: usize,
+    nb: usize,
+}
+
+impl Faces {
+    /// Grids of about `per` points per bucket, each shaped like its face's points: `count[f]`
+    /// points on face `f` with face coordinates in `bounds[f]` (`[a0, a1, b0, b1]`).
+    pub(crate) fn fit(count: [usize; 6], bounds: [[f32; 4]; 6], per: usize) -> Self {
+        let mut out = Self::default();
+        for f in 0..6 {
+            if count[f] == 0 {
+                continue;
+            }
+            let cells = (count[f] / per.max(1)).max(1);
+            let [a0, a1, b0, b1] = bounds[f].map(f64::from);
+            let (wa, wb) = ((a1 - a0).max(1e-12), (b1 - b0).max(1e-12));
+            let nx = ((cells as f64 * wa / wb).sqrt().round() as usize).clamp(1, cells);
+            let ny = (cells / nx).max(1);
+            out.grids[f] = FaceGrid {
+                first: out.nb,
+                nx,
+                ny,
+                a0,
+                b0,
+                sa: nx as f64 / wa,
+                sb: ny as f64 / wb,
+                a1,
+                b1,
+            };
+            out.nb += nx * ny;
+            out.used[out.nused] = f;
+            out.nused += 1;
+        }
+        out
+    }
+
+    /// The number of buckets.
+    pub(crate) fn buckets(&self) -> usize {
+        self.nb
+    }
+
+    /// The bucket of a point of face `f` at `(a, b)`.
+    #[inline]
+    pub(crate) fn bucket(&self, f: usize, a: f32, b: f32) -> usize {
+        let g = &self.grids[f];
+        g.first + g.row(b as f64) * g.nx + g.col(a as f64)
+    }
+
+    /// The narrowest bucket side (the footprints' pad is chosen against it).
+    pub(crate) fn narrowest(&self) -> f64 {
+        self.grids[..]
+            .iter()
+            .enumerate()
+            .filter(|(f, _)| self.used[..self.nused].contains(f))
+            .map(|(_, g)| (1.0 / g.sa).min(1.0 / g.sb))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Calls `f(rect)` with the buckets under the footprint of box `[lo, hi]` (not
+    /// [`LightView::near`]) on each face holding points, when the footprint meets its grid;
+    /// returns the footprints made.
+    #[inline]
+    pub(crate) fn rects(
+        &self,
+        view: &LightView,
+        lo: Vec3,
+        hi: Vec3,
+        mut f: impl FnMut(Rect),
+    ) -> u64 {
+        let mut fps = 0;
+        for &face in &self.used[..self.nused] {
+            let Some(fp) = view.footprint(lo, hi, face) else {
+                continue;
+            };
+            fps += 1;
+            let g = &self.grids[face];
+            if fp.a[1] < g.a0 || fp.a[0] > g.a1 || fp.b[1] < g.b0 || fp.b[0] > g.b1 {
+                continue;
+            }
+            let (x0, x1) = (g.col(fp.a[0]), g.col(fp.a[1]));
+            let (y0, y1) = (g.row(fp.b[0]), g.row(fp.b[1]));
+            f(Rect {
+                fp,
+                first: g.first + y0 * g.nx + x0,
+                w: x1 - x0 + 1,
+                h: y1 - y0 + 1,
+                stride: g.nx,
+            });
+        }
+        fps
+    }
+
+    /// Calls `f(bucket, footprint)` for every bucket of [`Self::rects`]; returns the
+    /// footprints made and the buckets visited.
+    #[inline]
+    pub(crate) fn cover(
+        &self,
+        view: &LightView,
+        lo: Vec3,
+        hi: Vec3,
+        mut f: impl FnMut(usize, &Footprint),
+    ) -> (u64, u64) {
+        let mut nbk = 0;
+        let fps = self.rects(view, lo, hi, |r| {
+            nbk += r.buckets() as u64;
+            r.for_each(|b| f(b, &r.fp));
+        });
+        (fps, nbk)
+    }
+}
+
+/// The buckets under one footprint on one face: `h` rows of `w` buckets, the first at
+/// `first`, rows `stride` apart (row-major grids).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rect {
+    pub(crate) fp: Footprint,
+    pub(crate) first: usize,
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+    pub(crate) stride: usize,
+}
+
+impl Rect {
+    /// How many buckets.
+    pub(crate) fn buckets(&self) -> usize {
+        self.w * self.h
+    }
+
+    /// The first bucket of each row.
+    #[inline]
+    pub(crate) fn rows(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.h).map(|y| self.first + y * self.stride)
+    }
+
+    /// Calls `f` on each bucket, row by row.
+    #[inline]
+    pub(crate) fn for_each(&self, mut f: impl FnMut(usize)) {
+        for r in self.rows() {
+            for b in r..r + self.w {
+                f(b);
+            }
+        }
+    }
+}
+
+/// The buckets of a share of `n` points at `per` points per bucket: at most this many (each
+/// face has at most `max(1, n_f / per)`), plus one for `start`'s end.
+pub(crate) fn bucket_cap(n: usize, per: usize) -> usize {
     n / per.max(1) + 6 + 1
 }
 
@@ -207,39 +359,12 @@ impl Dacrt {
                 None => Key::MISFIT,
             });
         }
-        // The grids: about `per` segments per bucket, shaped like the face's segments.
-        let mut faces = [FaceGrid::default(); 6];
-        let mut nb = 0;
-        for f in 0..6 {
-            if count[f] == 0 {
-                continue;
-            }
-            let cells = (count[f] / per).max(1);
-            let [a0, a1, b0, b1] = bounds[f].map(f64::from);
-            let (wa, wb) = ((a1 - a0).max(1e-12), (b1 - b0).max(1e-12));
-            let nx = ((cells as f64 * wa / wb).sqrt().round() as usize).clamp(1, cells);
-            let ny = (cells / nx).max(1);
-            faces[f] = FaceGrid {
-                first: nb,
-                nx,
-                ny,
-                a0,
-                b0,
-                sa: nx as f64 / wa,
-                sb: ny as f64 / wb,
-                a1,
-                b1,
-            };
-            nb += nx * ny;
-        }
-        // The frame: a ball around the light large enough that the footprints' pad is a tenth
-        // of the narrowest bucket or less (within `geom::light_space`'s range).
-        let narrow = faces[..]
-            .iter()
-            .zip(count)
-            .filter(|(_, c)| *c > 0)
-            .map(|(g, _)| (1.0 / g.sa).min(1.0 / g.sb))
-            .fold(f64::INFINITY, f64::min);
+        // The grids: about `per` segments per bucket, shaped like the face's segments; the
+        // frame: a ball around the light large enough that the footprints' pad is a tenth of
+        // the narrowest bucket or less (within `geom::light_space`'s range).
+        let faces = Faces::fit(count, bounds, per);
+        let nb = faces.buckets();
+        let narrow = faces.narrowest();
         let Some(view) = LightView::new(light, slack, scale, 0.1 * narrow) else {
             out.misfits.extend(range.map(|i| i as u32));
             return self.light_done(slot, sc, key, out);
@@ -259,8 +384,7 @@ impl Dacrt {
                 out.misfits.push(i as u32);
                 continue;
             }
-            let g = &faces[k.face as usize];
-            let b = g.first + g.row(k.b as f64) * g.nx + g.col(k.a as f64);
+            let b = faces.bucket(k.face as usize, k.a, k.b);
             k.face = b as u32;
             start[b + 1] += 1;
             depth[b] = depth[b].max(k.depth);
@@ -296,14 +420,6 @@ impl Dacrt {
         st.light_rays += pts.len() as u64;
         // The triangles, once.
         let span = &self.span;
-        let mut used = [0usize; 6];
-        let mut nused = 0;
-        for f in 0..6 {
-            if count[f] > 0 {
-                used[nused] = f;
-                nused += 1;
-            }
-        }
         let mut pass = Pass {
             tris,
             pts: &mut pts,
@@ -327,24 +443,9 @@ impl Dacrt {
                 pass.everywhere(t, nb);
                 continue;
             }
-            for &f in &used[..nused] {
-                let Some(fp) = view.footprint(lo, hi, f) else {
-                    continue;
-                };
-                pass.st.tri_box += 1;
-                let g = &faces[f];
-                if fp.a[1] < g.a0 || fp.a[0] > g.a1 || fp.b[1] < g.b0 || fp.b[0] > g.b1 {
-                    continue;
-                }
-                let (x0, x1) = (g.col(fp.a[0]), g.col(fp.a[1]));
-                let (y0, y1) = (g.row(fp.b[0]), g.row(fp.b[1]));
-                pass.st.light_buckets += ((y1 - y0 + 1) * (x1 - x0 + 1)) as u64;
-                for y in y0..=y1 {
-                    for x in x0..=x1 {
-                        pass.bucket(t, g.first + y * g.nx + x, &fp);
-                    }
-                }
-            }
+            let (fps, nbk) = faces.cover(&view, lo, hi, |b, fp| pass.bucket(t, b, fp));
+            pass.st.tri_box += fps;
+            pass.st.light_buckets += nbk;
         }
         st.ns_leaves += ns_since(c_pass);
         out.counts = st;
@@ -378,7 +479,7 @@ impl Dacrt {
 
 /// `v` (the f32 rounding of `exact`) raised to a bound of `exact`.
 #[inline]
-fn next_up(v: f32, exact: f64) -> f32 {
+pub(crate) fn next_up(v: f32, exact: f64) -> f32 {
     if (v as f64) >= exact {
         v
     } else {

@@ -189,7 +189,7 @@
 
 mod cone_rec;
 mod config;
-mod light;
+pub(crate) mod light;
 mod order;
 mod packets;
 pub(crate) mod partition;

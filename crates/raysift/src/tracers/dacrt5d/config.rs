@@ -103,6 +103,21 @@ pub struct Config {
     /// kept leaf), each child with its rays clipped to the child's box, and starts its 5D
     /// recursion there; false starts it on every triangle. Default true.
     pub kept_bundles: bool,
+    /// The eye pass (ours, `eye.rs`): a task whose rays all start at one point (a camera's
+    /// eye) traces them in that point's frame, an irregular z-buffer (`dacrt`'s light-space
+    /// pass with closest hits), instead of the 5D recursion. Default true.
+    pub eye: bool,
+    /// The eye pass's rays per bucket. Default 4 (1, 2 and 8 were slower on the bunny).
+    pub eye_bucket: usize,
+    /// The eye pass streams the triangles near to far in this many bins of their distance
+    /// from the eye (0: in index order; at most 1024). Default 64 (0 and 16 made more ray/triangle
+    /// tests on the bunny, 512 no fewer).
+    pub eye_bins: usize,
+    /// The eye pass runs only on a task holding at least this many rays per live triangle of
+    /// the scene (it streams every triangle per task). Default 1.
+    pub eye_ratio: f32,
+    /// The eye pass also runs when the eye is inside the scene's box. Default false.
+    pub eye_inside: bool,
     /// Recursion depth cap (a guard; leaves are naive beyond it). Default 64.
     pub max_depth: u32,
     /// Parallel tasks over disjoint shares of the rays, each with its own lists; 0 = the number
@@ -129,6 +144,11 @@ impl Default for Config {
             top_leaf: 8,
             top_split: super::TopSplit::Morton,
             kept_bundles: true,
+            eye: true,
+            eye_bucket: 4,
+            eye_bins: 64,
+            eye_ratio: 1.0,
+            eye_inside: false,
             max_depth: 64,
             tasks: 0,
         }
@@ -153,25 +173,52 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc { key: "top_split", doc: "space=box: kept levels split at the middle of the centroids' longest extent (middle) or at Morton cells (morton)" },
     OptionDoc { key: "shared_leaf", doc: "space=box: leaf size of the box splits shared by all bundles" },
     OptionDoc { key: "leaf_tris", doc: "space=box: split a would-be leaf in space while it holds more triangles than this" },
+    OptionDoc { key: "eye", doc: "a task whose rays all start at one point is traced in that point's frame (an irregular z-buffer) instead of the 5D recursion" },
+    OptionDoc { key: "eye_bucket", doc: "eye pass: rays per bucket" },
+    OptionDoc { key: "eye_bins", doc: "eye pass: triangles streamed near to far in this many distance bins (0: index order)" },
+    OptionDoc { key: "eye_ratio", doc: "eye pass only for tasks of at least eye_ratio rays per live triangle" },
+    OptionDoc { key: "eye_inside", doc: "eye pass also when the eye is inside the scene's box" },
     OptionDoc { key: "max_depth", doc: "recursion depth cap (leaves are naive beyond it)" },
     OptionDoc { key: "tasks", doc: "parallel tasks over disjoint shares of the rays (0: rayon threads)" },
 ];
 
 /// Configurations the conformance suite checks besides the defaults: both culls, both stops,
 /// deep recursions (tiny limits), ray splits only, spatial splits everywhere (box and
-/// major-axis), box splits down to single triangles, positions only.
+/// major-axis), box splits down to single triangles, positions only: all with the eye pass off
+/// (so rays from one point go through them too); then the eye pass with buckets of one ray
+/// and of many, in several tasks.
 pub const PRESETS: &[Preset] = &[
     Preset {
+        name: "eye pass, buckets of one ray",
+        opts: &[
+            ("eye_bucket", "1"),
+            ("eye_ratio", "0"),
+            ("eye_inside", "true"),
+            ("tasks", "3"),
+        ],
+    },
+    Preset {
+        name: "eye pass, buckets of 64 rays, index order",
+        opts: &[
+            ("eye_bucket", "64"),
+            ("eye_ratio", "0"),
+            ("eye_inside", "true"),
+            ("eye_bins", "0"),
+            ("tasks", "2"),
+        ],
+    },
+    Preset {
         name: "frustum",
-        opts: &[("cull", "frustum"), ("tasks", "1")],
+        opts: &[("eye", "false"), ("cull", "frustum"), ("tasks", "1")],
     },
     Preset {
         name: "cone",
-        opts: &[("cull", "cone"), ("tasks", "1")],
+        opts: &[("eye", "false"), ("cull", "cone"), ("tasks", "1")],
     },
     Preset {
         name: "frustum fixed tiny",
         opts: &[
+            ("eye", "false"),
             ("cull", "frustum"),
             ("stop", "fixed"),
             ("r_limit", "2"),
@@ -182,6 +229,7 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "cone fixed tiny",
         opts: &[
+            ("eye", "false"),
             ("cull", "cone"),
             ("stop", "fixed"),
             ("r_limit", "2"),
@@ -192,6 +240,7 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "frustum cost tiny, ray splits only",
         opts: &[
+            ("eye", "false"),
             ("c_r", "1"),
             ("c_g", "1"),
             ("spatial", "false"),
@@ -201,6 +250,7 @@ pub const PRESETS: &[Preset] = &[
     Preset {
         name: "cone cost tiny, spatial everywhere",
         opts: &[
+            ("eye", "false"),
             ("cull", "cone"),
             ("c_r", "1"),
             ("c_g", "1"),
@@ -210,11 +260,12 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "major-axis cuts, frustum",
-        opts: &[("space", "major"), ("tasks", "2")],
+        opts: &[("eye", "false"), ("space", "major"), ("tasks", "2")],
     },
     Preset {
         name: "major-axis cuts everywhere, cone, tiny",
         opts: &[
+            ("eye", "false"),
             ("space", "major"),
             ("cull", "cone"),
             ("c_r", "1"),
@@ -224,23 +275,39 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "shared box splits only (no hand-over by size), leaves of one",
-        opts: &[("hand_over", "0"), ("shared_leaf", "1"), ("tasks", "2")],
+        opts: &[
+            ("eye", "false"),
+            ("hand_over", "0"),
+            ("shared_leaf", "1"),
+            ("tasks", "2"),
+        ],
     },
     Preset {
         name: "kept levels down to 2 triangles, shared leaves of 1",
-        opts: &[("top_leaf", "2"), ("shared_leaf", "1"), ("tasks", "2")],
+        opts: &[
+            ("eye", "false"),
+            ("top_leaf", "2"),
+            ("shared_leaf", "1"),
+            ("tasks", "2"),
+        ],
     },
     Preset {
         name: "kept levels at the centroids' middle, down to 2 triangles",
-        opts: &[("top_split", "middle"), ("top_leaf", "2"), ("tasks", "2")],
+        opts: &[
+            ("eye", "false"),
+            ("top_split", "middle"),
+            ("top_leaf", "2"),
+            ("tasks", "2"),
+        ],
     },
     Preset {
         name: "every bundle on its own (hand-over at the root)",
-        opts: &[("hand_over", "1e30"), ("tasks", "3")],
+        opts: &[("eye", "false"), ("hand_over", "1e30"), ("tasks", "3")],
     },
     Preset {
         name: "every bundle on its own through kept levels of 2, spatial everywhere",
         opts: &[
+            ("eye", "false"),
             ("hand_over", "1e30"),
             ("top_leaf", "2"),
             ("spatial_ratio", "0"),
@@ -249,15 +316,21 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "bundles start on every triangle (no kept levels for them)",
-        opts: &[("kept_bundles", "false"), ("tasks", "2")],
+        opts: &[("eye", "false"), ("kept_bundles", "false"), ("tasks", "2")],
     },
     Preset {
         name: "box splits down to one triangle",
-        opts: &[("leaf_tris", "1"), ("spatial_ratio", "0.5"), ("tasks", "3")],
+        opts: &[
+            ("eye", "false"),
+            ("leaf_tris", "1"),
+            ("spatial_ratio", "0.5"),
+            ("tasks", "3"),
+        ],
     },
     Preset {
         name: "frustum, spatial everywhere, positions only, shallow",
         opts: &[
+            ("eye", "false"),
             ("spatial_ratio", "0"),
             ("dir_weight", "0"),
             ("stop", "fixed"),

@@ -12,7 +12,8 @@
 //! | `rec.rs` | a bundle's recursion: cull, cost stop or fixed limits, ray-space split, the major-axis cut with early termination, naive leaves | the post's `DACRT`, termination criterion; ours |
 //! | `space.rs` | box splits: inside a bundle (clipped rays, re-culled children), and shared by all bundles above them (packed rays) with the hand-over to the bundles | ours |
 //! | `top.rs` | the shared splits' upper levels, made by the first sharing call after a `prepare` and kept | ours |
-//! | `run.rs` | one task: buffers from the pool, classification into bundles (a counting sort), the shared splits or the bundles' recursions, results | |
+//! | `eye.rs` | a task whose rays all start at one point, traced in that point's frame (an irregular z-buffer) | ours |
+//! | `run.rs` | one task: buffers from the pool, the eye pass or the classification into bundles (a counting sort), the shared splits or the bundles' recursions, results | |
 //!
 //! What implements which part of the post:
 //! - **5D classification** (`geom::ray5d::classify`): major axis = largest `|d|` (ties by strict
@@ -87,6 +88,18 @@
 //!     the plane, and a hit on it would lie beyond it too.
 //!
 //!   Occlusion is any-hit: an occluded ray leaves at either split.
+//! - **Rays from one point** (ours, `eye.rs`, `eye`): where the post's hierarchy degenerates
+//!   (an origin box of no extent, only the slopes tell the rays apart), a task whose rays all
+//!   start at one point (bitwise: a camera's, shuffled or several samples per pixel) is traced
+//!   in that point's frame, as `dacrt`'s light-space pass traces shadow segments: its rays are
+//!   points on the faces of a cube around the eye (their `u, v`), sorted into buckets of
+//!   `eye_bucket` (4), and the triangles are streamed once, near to far in `eye_bins` (64)
+//!   distance bins, each tested only against the rays of the buckets under its box's
+//!   footprint whose best hit is not nearer than the box (a z-buffer, exact by
+//!   `geom::light_space`). Only when the eye is outside the scene's box (`eye_inside`: from
+//!   inside, the recursion's culls did better on Sponza) and the task holds at least
+//!   `eye_ratio` (1) rays per triangle (the pass streams every triangle per task: the dragon's
+//!   871K triangles for 262K rays gained nothing). BENCHMARKS.md § "dacrt5d: rays from one point".
 //! - **Threads** (`run.rs`): rayon tasks over disjoint shares of the rays (as `dacrt`), each with
 //!   its own lists, classifying its share into the bundles and recursing on each (the shared
 //!   splits too are per task).
@@ -107,9 +120,13 @@
 //! nodes (at most 28.4 B per triangle with `top_leaf` 8; 25 on the dragon), and frees its
 //! build's `8·T` of sort keys (`12·T` of items with `top_split=middle`). So `a = 24 + 4K`
 //! bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84` per ray (48 without
-//! box splits); `tests/dacrt5d.rs` checks it with a counting allocator.
+//! box splits). A task that takes the eye pass allocates, besides its `4·T` (the triangle
+//! order), `64·R_k + 12·(⌊R_k / eye_bucket⌋ + 7)` (16 bytes per ray in ray order, 16 + 32 per
+//! ray in its bucket, 12 per bucket) and no records and no kept levels. `tests/dacrt5d.rs`
+//! checks both with a counting allocator.
 
 mod config;
+mod eye;
 mod rec;
 mod run;
 mod space;
@@ -138,6 +155,7 @@ struct Scratch {
     recs: Vec<Rec>,
     pk: Vec<crate::geom::PackedRay>,
     pid: Vec<u32>,
+    eye: eye::EyeScratch,
 }
 
 /// The tracer: the options and each triangle's box.
@@ -226,6 +244,16 @@ crate::counters! {
         cone_tests,
         /// Ray/triangle tests.
         ray_tri,
+        /// Rays traced by the eye pass (`eye.rs`: a task's rays all from one point).
+        eye_rays,
+        /// Eye pass: triangles near the eye (tested against every live ray).
+        eye_near,
+        /// Eye pass: triangle footprints made (one per face holding rays).
+        eye_footprints,
+        /// Eye pass: buckets under the footprints.
+        eye_buckets,
+        /// Eye pass: rays of those buckets checked against the footprint.
+        eye_checks,
         /// Rays that left early at a spatial split (hit or `tmax` before the far half).
         terminated,
         /// Triangles surviving the culls at depth 0 (the bundles' roots).
@@ -378,6 +406,7 @@ impl Tracer for Dacrt5d {
                         + g.recs.capacity() * std::mem::size_of::<Rec>()
                         + g.pk.capacity() * std::mem::size_of::<crate::geom::PackedRay>()
                         + g.pid.capacity() * 4
+                        + g.eye.bytes()
                 })
             })
             .sum();

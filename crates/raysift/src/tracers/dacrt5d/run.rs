@@ -1,6 +1,7 @@
 //! One task: its share of the rays classified into the bundles (a counting sort into the
 //! record list), each bundle's recursion, the unbounded group's naive leaf, the results.
 
+use super::eye::Out;
 use super::rec::{Given, Rec, Task};
 use super::top::live_ids;
 use super::{Counts, Dacrt5d, Scratch, Space};
@@ -27,13 +28,43 @@ impl Dacrt5d {
         u: &mut [f32],
         v: &mut [f32],
         occ: &mut [bool],
-        cost: Option<CostMut<'_>>,
+        mut cost: Option<CostMut<'_>>,
     ) -> Tally<Counts> {
         let (ntri, len, base) = (scene.len(), range.len(), range.start);
         let slot = self.pool.get(base / chunk);
-        let sc = slot
+        let mut sc = slot
             .and_then(|m| m.lock().ok().map(|mut g| std::mem::take(&mut *g)))
             .unwrap_or_default();
+        // Rays all from one point: the eye pass (`eye.rs`), when they fit it.
+        if self.cfg.eye {
+            let mut st = Counts::default();
+            let out = Out {
+                t: &mut *t,
+                prim: &mut *prim,
+                u: &mut *u,
+                v: &mut *v,
+                occ: &mut *occ,
+            };
+            if self.eye_task::<ANY>(
+                scene.triangles(),
+                rays,
+                range.clone(),
+                &mut sc.eye,
+                &mut sc.tri_idx,
+                out,
+                cost.as_mut(),
+                &mut st,
+            ) {
+                let peak = sc.eye.bytes() as u64;
+                if let Some(Ok(mut g)) = slot.map(|m| m.lock()) {
+                    *g = sc;
+                }
+                return Tally {
+                    counts: st,
+                    peak_bytes: peak,
+                };
+            }
+        }
         // Box splits above the bundles (`space.rs`) pack the rays they share.
         let shared = self.cfg.spatial && self.cfg.space == Space::Box;
         let mut task = Task::<ANY> {
@@ -136,6 +167,7 @@ impl Dacrt5d {
                 recs: task.recs,
                 pk: task.pk,
                 pid: task.pid,
+                eye: sc.eye,
             };
         }
         Tally {

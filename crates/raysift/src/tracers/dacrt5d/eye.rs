@@ -1,0 +1,401 @@
+//! Ours: rays from one point (a camera's eye), traced in that point's frame. A task whose rays
+//! all start at one point (bitwise) is where the 5D hierarchy degenerates: the origin box has
+//! no extent and only the slopes `(u, v)` tell the rays apart, which are the coordinates of a
+//! cube map around the eye. The pass is `dacrt`'s light-space pass (`tracers/dacrt/light.rs`,
+//! an irregular z-buffer) with the eye in the light's place and closest hits: each ray is a
+//! point of one face (its direction's, [`ray_view`]), sorted into buckets of about
+//! `eye_bucket` rays (a counting sort, the grids shared with `light.rs`: [`Faces`]), and the
+//! triangles are streamed once: each triangle's box gets its footprint on every face
+//! ([`LightView::footprint`]), and only the rays of the buckets under it whose coordinates
+//! the footprint holds, and whose best hit so far is not nearer than the box, go through the
+//! shared test. A ray's depth is its best hit's face-axis coordinate `t·|d_k|` (exact in f64),
+//! so a ray whose hit lies nearer than a box's nearest point skips it exactly
+//! (`geom::light_space`, `every_eye_ray_hit_is_inside_its_footprint`). Occlusion is any-hit:
+//! an occluded ray leaves its bucket. Triangles in a tiny ball around the eye have no
+//! footprint and are tested against every ray.
+//!
+//! The triangles come near to far (`eye_bins` bins of their boxes' distance from the eye, a
+//! counting sort into the task's triangle list): a ray's best hit comes early and the
+//! buckets' depth bounds then skip the triangles behind it.
+//!
+//! Used for a task's whole share when every ray starts at the same point with `tmin >= 0`, a
+//! finite, non-zero direction and a `tmax` that is not NaN, the point lies outside the
+//! scene's box (unless `eye_inside`), and the share holds at least `eye_ratio` times as many
+//! rays as the scene has live triangles (the pass streams every triangle per task);
+//! otherwise the task goes through the 5D recursion. Measured in BENCHMARKS.md § "dacrt5d:
+//! rays from one point".
+
+// Negated comparisons on purpose (NaN-safe).
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use super::{Counts, Dacrt5d};
+use crate::geom::{intersect_triangle, ray_view, Footprint, LightView, Vec3};
+use crate::rays::{RayBatch, MISS};
+use crate::scene::TriangleSoup;
+use crate::tracer::{closer, CostMut};
+use crate::tracers::dacrt::light::{bucket_cap, next_up, Faces};
+use crate::tracers::dacrt::scratch::reuse;
+use std::ops::Range;
+
+/// The most distance bins of the triangle stream (`eye_bins` is clamped to it).
+const MAX_BINS: usize = 1024;
+
+/// A ray in its bucket: its face coordinates, its depth bound (the face-axis coordinate of
+/// its best hit so far, raised to f32) and its task-local index: what the footprint check
+/// reads, 16 bytes.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub(super) struct EyePoint {
+    a: f32,
+    b: f32,
+    depth: f32,
+    ray: u32,
+}
+
+/// The ray of an [`EyePoint`] (same slot): its direction and `tmin`, and its best hit so far
+/// (`t` starts at `tmax`): 32 bytes.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub(super) struct EyeRay {
+    d: [f32; 3],
+    tmin: f32,
+    t: f32,
+    prim: u32,
+    u: f32,
+    v: f32,
+}
+
+/// A task's buffers for the eye pass, kept between calls.
+#[derive(Default)]
+pub(super) struct EyeScratch {
+    /// Per ray of the share: its coordinates, depth and face, then its bucket.
+    key: Vec<EyePoint>,
+    pts: Vec<EyePoint>,
+    rays: Vec<EyeRay>,
+    buckets: Vec<Bucket>,
+}
+
+/// A bucket: its live rays are `pts[start..live]`, their depths at most `depth`; one cache
+/// line holds what a footprint's visit reads first.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+struct Bucket {
+    start: u32,
+    live: u32,
+    depth: f32,
+}
+
+impl EyeScratch {
+    pub(super) fn bytes(&self) -> usize {
+        16 * (self.key.capacity() + self.pts.capacity())
+            + 32 * self.rays.capacity()
+            + 12 * self.buckets.capacity()
+    }
+}
+
+/// The outputs of a task (closest hits, or occlusion), task-local.
+pub(super) struct Out<'o> {
+    pub(super) t: &'o mut [f32],
+    pub(super) prim: &'o mut [u32],
+    pub(super) u: &'o mut [f32],
+    pub(super) v: &'o mut [f32],
+    pub(super) occ: &'o mut [bool],
+}
+
+impl Dacrt5d {
+    /// The eye pass over rays `range` into `out` (reset to misses), or `false` (nothing
+    /// written) when the share does not fit it.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn eye_task<const ANY: bool>(
+        &self,
+        tris: &TriangleSoup,
+        rays: &RayBatch,
+        range: Range<usize>,
+        sc: &mut EyeScratch,
+        order: &mut Vec<u32>,
+        out: Out<'_>,
+        cost: Option<&mut CostMut<'_>>,
+        st: &mut Counts,
+    ) -> bool {
+        let n = range.len();
+        if n == 0 || (n as f64) < self.cfg.eye_ratio as f64 * self.live as f64 {
+            return false;
+        }
+        let eye = rays.origin(range.start);
+        // From inside the scene's box, every triangle lies around the eye (large ones
+        // covering many buckets, in many depth orders): the recursion culls better there.
+        let [lo, hi] = self.bounds.map(Vec3::from);
+        if !self.cfg.eye_inside && eye.cmpge(lo).all() && eye.cmple(hi).all() {
+            return false;
+        }
+        // Every ray from the eye (bitwise), the shared test's conditions for the pass: each
+        // one's face, coordinates (f32: the footprints' pad covers their rounding, and the
+        // buckets are taken from these same values) and depth; the faces' bounds and counts.
+        let mut key = reuse(std::mem::take(&mut sc.key), n, true);
+        let mut count = [0usize; 6];
+        let mut bounds = [[
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ]; 6];
+        for i in range.clone() {
+            let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
+            let fits = o == eye && tmin >= 0.0 && !tmax.is_nan();
+            let Some(r) = ray_view(d).filter(|_| fits) else {
+                sc.key = key;
+                return false;
+            };
+            let (a, b) = (r.a as f32, r.b as f32);
+            count[r.face] += 1;
+            let q = &mut bounds[r.face];
+            *q = [q[0].min(a), q[1].max(a), q[2].min(b), q[3].max(b)];
+            let x = tmax as f64 * r.axis;
+            key.push(EyePoint {
+                a,
+                b,
+                depth: next_up(x as f32, x),
+                ray: r.face as u32,
+            });
+        }
+        let per = self.cfg.eye_bucket.max(1);
+        let faces = Faces::fit(count, bounds, per);
+        let nb = faces.buckets();
+        // The frame: slack 0 (every point of a ray lies along its direction from the eye);
+        // the boxes' pad from the scene's and the eye's magnitudes.
+        let Some(view) = LightView::new(eye, 0.0, self.scale as f64, 0.0) else {
+            sc.key = key;
+            return false;
+        };
+        // The counting sort into buckets (`ray` holds the face, then the bucket).
+        let cap = bucket_cap(n, per);
+        let mut bk = reuse(std::mem::take(&mut sc.buckets), cap, true);
+        bk.resize(
+            nb,
+            Bucket {
+                start: 0,
+                live: 0,
+                depth: f32::NEG_INFINITY,
+            },
+        );
+        // Counts in `live`, then the starts, then `live` is the placing cursor.
+        for k in key.iter_mut() {
+            let b = faces.bucket(k.ray as usize, k.a, k.b);
+            k.ray = b as u32;
+            bk[b].live += 1;
+            bk[b].depth = bk[b].depth.max(k.depth);
+        }
+        let mut at = 0;
+        for b in bk.iter_mut() {
+            (b.start, at) = (at, at + b.live);
+            b.live = b.start;
+        }
+        let mut pts = reuse(std::mem::take(&mut sc.pts), n, true);
+        let mut eray = reuse(std::mem::take(&mut sc.rays), n, true);
+        pts.resize(n, EyePoint::default());
+        eray.resize(n, EyeRay::default());
+        for (j, i) in range.clone().enumerate() {
+            let k = key[j];
+            let b = &mut bk[k.ray as usize];
+            let at = b.live as usize;
+            b.live += 1;
+            pts[at] = EyePoint { ray: j as u32, ..k };
+            eray[at] = EyeRay {
+                d: rays.dir(i).to_array(),
+                tmin: rays.tmin[i],
+                t: rays.tmax[i],
+                prim: MISS,
+                u: 0.0,
+                v: 0.0,
+            };
+        }
+        // Each bucket's cursor now ends at the next's start: every ray is live.
+        st.eye_rays += n as u64;
+        let mut pass = Pass::<ANY> {
+            tris,
+            eye,
+            pts: &mut pts,
+            rays: &mut eray,
+            bk: &mut bk,
+            occ: out.occ,
+            cost,
+            st,
+        };
+        // The triangles near to far (`eye_bins` bins of the distance from the eye to their
+        // boxes, index order inside a bin, a counting sort into `order`): a ray's best hit
+        // comes early, and the buckets' depths then cull the triangles behind it.
+        let bins = self.cfg.eye_bins.min(MAX_BINS);
+        let mut ord = reuse(std::mem::take(order), self.boxes.len(), true);
+        if bins > 0 {
+            let far = (eye - lo).abs().max((eye - hi).abs()).length();
+            let scale = if far > 0.0 { bins as f32 / far } else { 0.0 };
+            let bin = |bx: &[f32; 6]| {
+                let (lo, hi) = (
+                    Vec3::new(bx[0], bx[1], bx[2]),
+                    Vec3::new(bx[3], bx[4], bx[5]),
+                );
+                let gap = (lo - eye).max(eye - hi).max(Vec3::ZERO).length();
+                // NaN-safe (`as` saturates): a bin in range.
+                ((gap * scale) as usize).min(bins - 1)
+            };
+            // On the stack: nothing is allocated per call.
+            let mut at = [0u32; MAX_BINS + 1];
+            for bx in self.boxes.iter().filter(|b| b[0] <= b[3]) {
+                at[bin(bx) + 1] += 1;
+            }
+            for b in 0..bins {
+                at[b + 1] += at[b];
+            }
+            ord.resize(at[bins] as usize, 0);
+            for (t, bx) in self.boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[3]) {
+                let b = bin(bx);
+                ord[at[b] as usize] = t as u32;
+                at[b] += 1;
+            }
+        } else {
+            ord.extend(super::top::live_ids(&self.boxes));
+        }
+        for &t in &ord {
+            let t = t as usize;
+            let bx = &self.boxes[t];
+            let (lo, hi) = (
+                Vec3::new(bx[0], bx[1], bx[2]),
+                Vec3::new(bx[3], bx[4], bx[5]),
+            );
+            // Degenerate or non-finite (an empty box): never hit.
+            if !(lo.x <= hi.x) {
+                continue;
+            }
+            if view.near(lo, hi) {
+                pass.st.eye_near += 1;
+                pass.everywhere(t, nb);
+                continue;
+            }
+            let (fps, nbk) = faces.cover(&view, lo, hi, |b, fp| pass.bucket(t, b, fp));
+            pass.st.eye_footprints += fps;
+            pass.st.eye_buckets += nbk;
+        }
+        if !ANY {
+            for (p, r) in pts.iter().zip(&eray) {
+                if r.prim != MISS {
+                    let k = p.ray as usize;
+                    (out.t[k], out.prim[k], out.u[k], out.v[k]) = (r.t, r.prim, r.u, r.v);
+                }
+            }
+        }
+        key.clear();
+        (sc.key, sc.pts, sc.rays) = (key, pts, eray);
+        sc.buckets = bk;
+        ord.clear();
+        *order = ord;
+        true
+    }
+}
+
+/// The triangle stream's state.
+struct Pass<'p, 'c, const ANY: bool> {
+    tris: &'p TriangleSoup,
+    eye: Vec3,
+    pts: &'p mut [EyePoint],
+    rays: &'p mut [EyeRay],
+    bk: &'p mut [Bucket],
+    occ: &'p mut [bool],
+    cost: Option<&'p mut CostMut<'c>>,
+    st: &'p mut Counts,
+}
+
+impl<const ANY: bool> Pass<'_, '_, ANY> {
+    /// Triangle `t` against the live rays of bucket `b` that its footprint `fp` holds and
+    /// whose best hit is not nearer than its box; a closest-hit bucket's depth bound is
+    /// lowered to its rays' on the way.
+    #[inline]
+    fn bucket(&mut self, t: usize, b: usize, fp: &Footprint) {
+        let bk = self.bk[b];
+        if (bk.depth as f64) < fp.x0 {
+            return;
+        }
+        let mut q = bk.start as usize;
+        let mut end = bk.live as usize;
+        let mut tri = None;
+        let mut deepest = f32::NEG_INFINITY;
+        while q < end {
+            let p = self.pts[q];
+            self.st.eye_checks += 1;
+            let (a, bb) = (p.a as f64, p.b as f64);
+            if (p.depth as f64) < fp.x0
+                || a < fp.a[0]
+                || a > fp.a[1]
+                || bb < fp.b[0]
+                || bb > fp.b[1]
+            {
+                if let Some(c) = self.cost.as_deref_mut() {
+                    c.add(p.ray as usize, 0, 1, 0);
+                }
+                deepest = deepest.max(p.depth);
+                q += 1;
+                continue;
+            }
+            let v = *tri.get_or_insert_with(|| self.tris.get(t));
+            if self.test(q, t as u32, v) {
+                // Occluded: out of the live range.
+                end -= 1;
+                self.pts.swap(q, end);
+                self.rays.swap(q, end);
+            } else {
+                deepest = deepest.max(self.pts[q].depth);
+                q += 1;
+            }
+        }
+        self.bk[b].live = end as u32;
+        if !ANY {
+            self.bk[b].depth = deepest;
+        }
+    }
+
+    /// Triangle `t` (near the eye) against every live ray.
+    fn everywhere(&mut self, t: usize, nb: usize) {
+        let v = self.tris.get(t);
+        for b in 0..nb {
+            let mut q = self.bk[b].start as usize;
+            let mut end = self.bk[b].live as usize;
+            while q < end {
+                if self.test(q, t as u32, v) {
+                    end -= 1;
+                    self.pts.swap(q, end);
+                    self.rays.swap(q, end);
+                } else {
+                    q += 1;
+                }
+            }
+            self.bk[b].live = end as u32;
+            // The buckets' depth bounds stay upper bounds: depths only fall.
+        }
+    }
+
+    /// The shared test of the ray in slot `q` against triangle `prim` (`v`): a closest hit
+    /// updates its best and depth; returns whether an any-hit ray is occluded.
+    #[inline(always)]
+    fn test(&mut self, q: usize, prim: u32, v: [Vec3; 3]) -> bool {
+        self.st.ray_tri += 1;
+        let ray = self.pts[q].ray as usize;
+        if let Some(c) = self.cost.as_deref_mut() {
+            c.add(ray, 0, 1, 1);
+        }
+        let r = &mut self.rays[q];
+        let d = Vec3::from_array(r.d);
+        let Some(h) = intersect_triangle(self.eye, d, v[0], v[1], v[2], r.tmin, r.t) else {
+            return false;
+        };
+        if ANY {
+            self.occ[ray] = true;
+            return true;
+        }
+        if closer(h.t, prim, r.t, r.prim) {
+            (r.t, r.prim, r.u, r.v) = (h.t, prim, h.u, h.v);
+            // `|d_k|` is the largest component: the face axis's.
+            let x = h.t as f64 * d.abs().max_element() as f64;
+            self.pts[q].depth = next_up(x as f32, x);
+        }
+        false
+    }
+}
