@@ -139,10 +139,9 @@ fn batches_of_one_ray_and_unbounded_rays() {
 
 /// Rays from `eye` through every vertex and edge midpoint of `s`'s triangles (hits on the
 /// triangles' boxes and on shared edges and vertices, as seen from the eye), in a shuffled
-/// order, `tmin` a thousandth of the scene's size and, for every third, `tmax` half-way.
+/// order, from a thousandth of the way (`tmin`) and, for every third, to half-way (`tmax`).
 fn rays_from(s: &Scene, eye: Vec3) -> RayBatch {
     let tris = s.triangles();
-    let size = s.bounds().extent().max_element();
     let mut v = Vec::new();
     for t in 0..tris.len() {
         let [a, b, c] = tris.get(t);
@@ -158,12 +157,8 @@ fn rays_from(s: &Scene, eye: Vec3) -> RayBatch {
         Ray {
             origin: eye,
             dir: d,
-            tmin: 1e-3 * size,
-            tmax: if i % 3 == 0 {
-                0.5 * d.length() * size
-            } else {
-                f32::INFINITY
-            },
+            tmin: 1e-3,
+            tmax: if i % 3 == 0 { 0.5 } else { f32::INFINITY },
         }
     }))
 }
@@ -173,7 +168,7 @@ fn rays_from(s: &Scene, eye: Vec3) -> RayBatch {
 /// outside it, on one of its vertices (triangles around the eye, tested against every ray)
 /// and inside it, at scales 1e-3 to 1e3 far from the origin; the counters show when it runs:
 /// not with `eye=false`, not from inside the scene's box unless `eye_inside`, not for fewer
-/// rays than `eye_ratio` per triangle.
+/// rays than `eye_ratio` per triangle; from outside, the kept levels' walk skips hidden nodes.
 #[test]
 fn eye_pass_from_one_point() {
     for (k, scale) in [1e-3f32, 1.0, 1e3].into_iter().enumerate() {
@@ -208,6 +203,10 @@ fn eye_pass_from_one_point() {
             );
             if eye == vertex {
                 assert!(on.work.get("eye_near") > 0, "{:?}", on.work);
+            }
+            if !inside {
+                // The far side of the sphere lies behind every ray's hit: kept nodes skipped.
+                assert!(on.work.get("eye_hidden") > 0, "{:?}", on.work);
             }
             let def = stats(&s, &rays, &[]);
             assert_eq!(
@@ -285,14 +284,15 @@ fn box_splits_clip_incoherent_rays() {
 
 /// Each option does what it says in the counters: the chosen cull runs (and culls: fewer
 /// ray/triangle tests than naive's R·T), spatial splits (box splits, or major-axis cuts that
-/// terminate rays early) happen only when on, the fixed stop differs from the cost stop.
+/// terminate rays early) happen only when on, the fixed stop differs from the cost stop (with
+/// the eye pass off: its camera rays would take it).
 #[test]
 fn options_show_in_the_counters() {
     let s = procedural::icosphere(5120);
     let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(64, 64);
     let (n, t) = (cam.len() as u64, s.len() as u64);
-    let f = stats(&s, &cam, &[("cull", "frustum")]);
-    let c = stats(&s, &cam, &[("cull", "cone")]);
+    let f = stats(&s, &cam, &[("cull", "frustum"), ("eye", "false")]);
+    let c = stats(&s, &cam, &[("cull", "cone"), ("eye", "false")]);
     assert!(f.work.get("frustum_tests") > 0 && f.work.get("cone_tests") == 0);
     assert!(c.work.get("cone_tests") > 0 && c.work.get("frustum_tests") == 0);
     for st in [&f, &c] {
@@ -307,14 +307,14 @@ fn options_show_in_the_counters() {
         f.work
     );
     assert_eq!((f.work.get("spatial_splits"), f.work.get("clips")), (0, 0));
-    let major = stats(&s, &cam, &[("space", "major")]);
+    let major = stats(&s, &cam, &[("space", "major"), ("eye", "false")]);
     assert!(
         major.work.get("spatial_splits") > 0 && major.work.get("terminated") > 0,
         "{:?}",
         major.work
     );
     assert_eq!(major.work.get("box_splits"), 0);
-    let off = stats(&s, &cam, &[("spatial", "false")]);
+    let off = stats(&s, &cam, &[("spatial", "false"), ("eye", "false")]);
     assert_eq!(
         (
             off.work.get("spatial_splits"),
@@ -324,7 +324,7 @@ fn options_show_in_the_counters() {
         (0, 0, 0)
     );
     assert!(off.work.get("ray_splits") > 0);
-    let fixed = stats(&s, &cam, &[("stop", "fixed")]);
+    let fixed = stats(&s, &cam, &[("stop", "fixed"), ("eye", "false")]);
     assert_ne!(fixed.work.get("leaves"), f.work.get("leaves"));
 }
 
@@ -335,8 +335,8 @@ fn options_show_in_the_counters() {
 fn bundles_walk_the_kept_levels() {
     let s = procedural::icosphere(20_480);
     let cam = Camera::framing(&s.bounds(), 45.0, 1.0).rays(32, 32);
-    let on = stats(&s, &cam, &[]);
-    let off = stats(&s, &cam, &[("kept_bundles", "false")]);
+    let on = stats(&s, &cam, &[("eye", "false")]);
+    let off = stats(&s, &cam, &[("kept_bundles", "false"), ("eye", "false")]);
     assert!(on.work.get("kept_descents") > 0, "{:?}", on.work);
     assert_eq!(off.work.get("kept_descents"), 0);
     // The kept levels are made by the first call either way (the rays of no bundle share them
@@ -349,7 +349,7 @@ fn bundles_walk_the_kept_levels() {
         off.work
     );
     // Without box splits there are no kept levels to walk.
-    let plain = stats(&s, &cam, &[("spatial", "false")]);
+    let plain = stats(&s, &cam, &[("spatial", "false"), ("eye", "false")]);
     assert_eq!(
         (plain.work.get("kept_descents"), plain.work.get("top_built")),
         (0, 0)
@@ -485,7 +485,7 @@ fn measure(f: impl FnOnce()) -> usize {
 }
 
 /// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits;
-/// `64·R` and `12·(⌊R_k/4⌋ + 7)` per task of `R_k` rays in the eye pass, which keeps no levels),
+/// `64·R` and `12·(⌊R_k/4⌋ + 7)` per task of `R_k` rays in the eye pass),
 /// plus, when its rays start from the kept levels (box splits: shared rays and handed-over
 /// bundles alike), those levels (`4·T` and `64·(4·T/(top_leaf + 1) + 1)`) and their build's
 /// sort keys (`8·T`, freed), whatever the scene's shape, the rays and the options; a second
@@ -503,7 +503,7 @@ fn memory_is_a_deterministic_linear_function() {
             let cam = Camera::framing(&scene.bounds(), 45.0, 1.33).rays(64, 48);
             let random = random_in_box(&scene.bounds(), r, 5);
             for (rays, kv) in [
-                (&cam, &[("cull", "frustum")][..]),
+                (&cam, &[("cull", "frustum"), ("eye", "false")][..]),
                 (&cam, &[("eye_ratio", "0")][..]),
                 (&random, &[("cull", "cone")][..]),
                 (&random, &[("stop", "fixed"), ("spatial", "false")][..]),
@@ -543,7 +543,8 @@ fn memory_is_a_deterministic_linear_function() {
                 let [prepare, first, again, held] = m;
                 // Box splits (on unless `spatial=false`) keep 36 B more per ray: packed records.
                 // The eye pass (a camera's rays with `eye_ratio` 0) instead keeps 64 B per ray
-                // and 12 B per bucket (at most ⌊R_k / 4⌋ + 7 per task of R_k rays).
+                // and 12 B per bucket (at most ⌊R_k / 4⌋ + 7 per task of R_k rays); it walks
+                // the kept levels too.
                 let eye = kv.contains(&("eye_ratio", "0"));
                 let (per_ray, buckets) = if eye {
                     let chunk = r.div_ceil(tasks);
@@ -565,8 +566,8 @@ fn memory_is_a_deterministic_linear_function() {
                 };
                 assert_eq!(
                     built > 0,
-                    !kv.contains(&("spatial", "false")) && !eye,
-                    "{kv:?}: box splits walk the kept levels"
+                    !kv.contains(&("spatial", "false")),
+                    "{kv:?}: box splits and the eye pass walk the kept levels"
                 );
                 assert_eq!(prepare, 24 * t, "{kv:?}");
                 assert_eq!(

@@ -2,37 +2,44 @@
 //! all start at one point (bitwise) is where the 5D hierarchy degenerates: the origin box has
 //! no extent and only the slopes `(u, v)` tell the rays apart, which are the coordinates of a
 //! cube map around the eye. The pass is `dacrt`'s light-space pass (`tracers/dacrt/light.rs`,
-//! an irregular z-buffer) with the eye in the light's place and closest hits: each ray is a
-//! point of one face (its direction's, [`ray_view`]), sorted into buckets of about
-//! `eye_bucket` rays (a counting sort, the grids shared with `light.rs`: [`Faces`]), and the
-//! triangles are streamed once: each triangle's box gets its footprint on every face
-//! ([`LightView::footprint`]), and only the rays of the buckets under it whose coordinates
-//! the footprint holds, and whose best hit so far is not nearer than the box, go through the
-//! shared test (gathered per triangle and tested four at a time from the eye:
-//! [`TriFromOrigin`], bit-equal to it). A ray's depth is its best hit's face-axis coordinate `t·|d_k|` (exact in f64),
-//! so a ray whose hit lies nearer than a box's nearest point skips it exactly
-//! (`geom::light_space`, `every_eye_ray_hit_is_inside_its_footprint`). Occlusion is any-hit:
-//! an occluded ray leaves its bucket. Triangles in a tiny ball around the eye have no
-//! footprint and are tested against every ray.
+//! an irregular z-buffer) with the eye in the light's place and closest hits:
+//! - each ray is a point of one face (its direction's, [`ray_view`]), sorted into buckets of
+//!   about `eye_bucket` rays (a counting sort; the grids are shared with `light.rs`: [`Faces`]);
+//! - the triangles are streamed once: each triangle's box gets its footprint on every face
+//!   ([`LightView::footprint`]), and only the rays of the buckets under it whose coordinates
+//!   the footprint holds, and whose best hit so far is not nearer than the box, go through the
+//!   shared test (gathered per triangle and tested four at a time from the eye:
+//!   [`TriFromOrigin`], bit-equal to it);
+//! - a ray's depth is its best hit's face-axis coordinate `t·|d_k|` (exact in f64), so a ray
+//!   whose hit lies nearer than a box's nearest point skips it exactly (`geom::light_space`,
+//!   `every_eye_ray_hit_is_inside_its_footprint`); each bucket keeps an upper bound of its
+//!   rays' depths, lowered after the tests that improved them;
+//! - occlusion is any-hit: an occluded ray's depth becomes `-inf`, it is never tested again;
+//! - triangles in a tiny ball around the eye have no footprint and are tested against every ray.
+//!
+//! **Order** (`eye_tree`, ours): the triangles come from the kept levels (`top.rs`, made here
+//! if no call made them yet), walked near to far, and a node whose box's footprints cover only
+//! buckets that are empty or whose rays all hit nearer than the box is skipped whole (a
+//! hierarchical z-buffer: a triangle in the box has a footprint inside the box's and an `x0`
+//! beyond it). Without them, near to far in `eye_bins` bins of the boxes' distance (a counting
+//! sort into the task's triangle list). Either way a ray's best hit comes early and the
+//! buckets' bounds then skip what lies behind it.
 //!
 //! The footprints' rectangles go through a short software pipeline: their buckets' records,
 //! then those buckets' first rays, are asked for (prefetched) a few rectangles before they are
 //! traced (3–10% on the bunny's shuffled camera, BENCHMARKS.md).
 //!
-//! The triangles come near to far (`eye_bins` bins of their boxes' distance from the eye, a
-//! counting sort into the task's triangle list): a ray's best hit comes early and the
-//! buckets' depth bounds then skip the triangles behind it.
-//!
 //! Used for a task's whole share when every ray starts at the same point with `tmin >= 0`, a
 //! finite, non-zero direction and a `tmax` that is not NaN, the point lies outside the
-//! scene's box (unless `eye_inside`), and the share holds at least `eye_ratio` times as many
-//! rays as the scene has live triangles (the pass streams every triangle per task);
+//! scene's box (unless `eye_inside`), and the share holds at least `eye_ratio` (0.25) times as
+//! many rays as the scene has live triangles (the pass walks the triangles per task);
 //! otherwise the task goes through the 5D recursion. Measured in BENCHMARKS.md § "dacrt5d:
 //! rays from one point".
 
 // Negated comparisons on purpose (NaN-safe).
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use super::top::Top;
 use super::{Counts, Dacrt5d};
 use crate::geom::lanes::Lanes;
 use crate::geom::{ray_view, LightView, TriFromOrigin, Vec3};
@@ -229,100 +236,101 @@ impl Dacrt5d {
             cost,
             st,
         };
-        // The triangles near to far (`eye_bins` bins of the distance from the eye to their
-        // boxes, index order inside a bin, a counting sort into `order`): a ray's best hit
-        // comes early, and the buckets' depths then cull the triangles behind it.
-        let bins = self.cfg.eye_bins.min(MAX_BINS);
+        // The kept levels (made here if no call made them yet), walked near to far: a node
+        // whose box covers only buckets whose rays all hit nearer (or none) is skipped whole,
+        // a hierarchical z-buffer; without them (`top_leaf = 0`, `eye_tree=false`), the
+        // triangles near to far in `eye_bins` bins of their boxes' distance (index order
+        // inside a bin, a counting sort into `order`). Either way a ray's best hit comes early,
+        // and the buckets' depths then cull what lies behind it.
         let mut ord = reuse(std::mem::take(order), self.boxes.len(), true);
-        if bins > 0 {
-            let far = (eye - lo).abs().max((eye - hi).abs()).length();
-            let scale = if far > 0.0 { bins as f32 / far } else { 0.0 };
-            let bin = |bx: &[f32; 6]| {
-                let (lo, hi) = (
-                    Vec3::new(bx[0], bx[1], bx[2]),
-                    Vec3::new(bx[3], bx[4], bx[5]),
+        let mut stream = Stream::new();
+        let tree = (self.cfg.eye_tree && self.cfg.top_leaf > 0).then(|| {
+            let mut built = 0;
+            let top = self.top.get_or_init(|| {
+                let top = Top::new(
+                    &self.boxes,
+                    self.cfg.top_leaf,
+                    self.cfg.max_depth,
+                    self.cfg.top_split,
                 );
-                let gap = (lo - eye).max(eye - hi).max(Vec3::ZERO).length();
-                // NaN-safe (`as` saturates): a bin in range.
-                ((gap * scale) as usize).min(bins - 1)
-            };
-            // On the stack: nothing is allocated per call.
-            let mut at = [0u32; MAX_BINS + 1];
-            for bx in self.boxes.iter().filter(|b| b[0] <= b[3]) {
-                at[bin(bx) + 1] += 1;
-            }
-            for b in 0..bins {
-                at[b + 1] += at[b];
-            }
-            ord.resize(at[bins] as usize, 0);
-            for (t, bx) in self.boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[3]) {
-                let b = bin(bx);
-                ord[at[b] as usize] = t as u32;
-                at[b] += 1;
+                built = top.nodes.len() as u64;
+                top
+            });
+            pass.st.top_built += built;
+            top
+        });
+        if let Some(top) = tree.filter(|t| !t.nodes.is_empty()) {
+            let mut stack = [0u32; STACK];
+            let mut sp = 1;
+            while sp > 0 {
+                sp -= 1;
+                let node = top.nodes[stack[sp] as usize];
+                let (lo, hi) = (node.set.lo, node.set.hi);
+                if !view.near(lo, hi) && pass.hidden(&faces, &view, lo, hi) {
+                    pass.st.eye_hidden += node.len as u64;
+                    continue;
+                }
+                let tris = &top.order[node.start as usize..(node.start + node.len) as usize];
+                if node.kids == 0 || sp + 2 > STACK {
+                    for &t in tris {
+                        stream.feed(&mut pass, &faces, &view, t as usize, nb, &self.boxes);
+                    }
+                    continue;
+                }
+                let k = node.kids as usize;
+                let gap = |i: usize| {
+                    let s = &top.nodes[i].set;
+                    (s.lo - eye)
+                        .max(eye - s.hi)
+                        .max(Vec3::ZERO)
+                        .length_squared()
+                };
+                let (near, far) = if gap(k) <= gap(k + 1) {
+                    (k, k + 1)
+                } else {
+                    (k + 1, k)
+                };
+                stack[sp] = far as u32;
+                stack[sp + 1] = near as u32;
+                sp += 2;
             }
         } else {
-            ord.extend(super::top::live_ids(&self.boxes));
-        }
-        // A software pipeline over the footprints' rectangles (each triangle makes at most six).
-        const AHEAD: usize = 16;
-        const RING: usize = 32;
-        let none = Rect {
-            fp: crate::geom::Footprint {
-                a: [0.0; 2],
-                b: [0.0; 2],
-                x0: 0.0,
-            },
-            first: 0,
-            w: 0,
-            h: 0,
-            stride: 0,
-        };
-        let mut ring = [(0u32, none); RING];
-        let (mut head, mut tail) = (0usize, 0usize);
-        for &t in &ord {
-            let t = t as usize;
-            let bx = &self.boxes[t];
-            let (lo, hi) = (
-                Vec3::new(bx[0], bx[1], bx[2]),
-                Vec3::new(bx[3], bx[4], bx[5]),
-            );
-            // Degenerate or non-finite (an empty box): never hit.
-            if !(lo.x <= hi.x) {
-                continue;
-            }
-            if view.near(lo, hi) {
-                pass.st.eye_near += 1;
-                pass.everywhere(t, nb);
-                continue;
-            }
-            pass.st.eye_footprints += faces.rects(&view, lo, hi, |r| {
-                for row in r.rows() {
-                    prefetch(pass.bk, row);
-                    prefetch(pass.bk, row + r.w - 1);
+            let bins = self.cfg.eye_bins.min(MAX_BINS);
+            let mut ord = reuse(std::mem::take(order), self.boxes.len(), true);
+            if bins > 0 {
+                let far = (eye - lo).abs().max((eye - hi).abs()).length();
+                let scale = if far > 0.0 { bins as f32 / far } else { 0.0 };
+                let bin = |bx: &[f32; 6]| {
+                    let (lo, hi) = (
+                        Vec3::new(bx[0], bx[1], bx[2]),
+                        Vec3::new(bx[3], bx[4], bx[5]),
+                    );
+                    let gap = (lo - eye).max(eye - hi).max(Vec3::ZERO).length();
+                    // NaN-safe (`as` saturates): a bin in range.
+                    ((gap * scale) as usize).min(bins - 1)
+                };
+                // On the stack: nothing is allocated per call.
+                let mut at = [0u32; MAX_BINS + 1];
+                for bx in self.boxes.iter().filter(|b| b[0] <= b[3]) {
+                    at[bin(bx) + 1] += 1;
                 }
-                prefetch(&pass.tris.v0, t);
-                prefetch(&pass.tris.v1, t);
-                prefetch(&pass.tris.v2, t);
-                ring[tail % RING] = (t as u32, r);
-                tail += 1;
-            });
-            while tail - head > AHEAD {
-                let (t, r) = ring[head % RING];
-                let (_, soon) = ring[(head + AHEAD / 2) % RING];
-                for row in soon.rows() {
-                    let s = pass.bk[row].start as usize;
-                    prefetch(pass.pts, s);
-                    prefetch(pass.rays, s);
+                for b in 0..bins {
+                    at[b + 1] += at[b];
                 }
-                pass.rect(t as usize, &r);
-                head += 1;
+                ord.resize(at[bins] as usize, 0);
+                for (t, bx) in self.boxes.iter().enumerate().filter(|(_, b)| b[0] <= b[3]) {
+                    let b = bin(bx);
+                    ord[at[b] as usize] = t as u32;
+                    at[b] += 1;
+                }
+            } else {
+                ord.extend(super::top::live_ids(&self.boxes));
+            }
+            for &t in &ord {
+                stream.feed(&mut pass, &faces, &view, t as usize, nb, &self.boxes);
             }
         }
-        while head < tail {
-            let (t, r) = ring[head % RING];
-            pass.rect(t as usize, &r);
-            head += 1;
-        }
+        stream.drain(&mut pass);
         if !ANY {
             for (p, r) in pts.iter().zip(&eray) {
                 if r.prim != MISS {
@@ -337,6 +345,105 @@ impl Dacrt5d {
         ord.clear();
         *order = ord;
         true
+    }
+}
+
+/// Footprints in flight: a short software pipeline over the triangles' rectangles, whose
+/// buckets' records, then those buckets' first rays, are asked for (prefetched) before they
+/// are traced (each triangle makes at most six).
+struct Stream {
+    ring: [(u32, Rect); RING],
+    head: usize,
+    tail: usize,
+}
+
+/// Rectangles in flight, and the ring's size.
+const AHEAD: usize = 16;
+const RING: usize = 32;
+
+/// The kept levels' walk: its stack (a node deeper than this has its triangles streamed).
+const STACK: usize = 256;
+
+/// A node covering more buckets than this is not checked for being hidden (its children are).
+const HIDDEN_MAX_BUCKETS: usize = 64;
+
+impl Stream {
+    fn new() -> Self {
+        let none = Rect {
+            fp: crate::geom::Footprint {
+                a: [0.0; 2],
+                b: [0.0; 2],
+                x0: 0.0,
+            },
+            first: 0,
+            w: 0,
+            h: 0,
+            stride: 0,
+        };
+        Self {
+            ring: [(0, none); RING],
+            head: 0,
+            tail: 0,
+        }
+    }
+
+    /// Triangle `t`: near the eye, against every ray at once; else its rectangles into the
+    /// ring, and the rectangles `AHEAD` places earlier traced.
+    #[inline]
+    fn feed<const ANY: bool>(
+        &mut self,
+        pass: &mut Pass<'_, '_, ANY>,
+        faces: &Faces,
+        view: &LightView,
+        t: usize,
+        nb: usize,
+        boxes: &[[f32; 6]],
+    ) {
+        let bx = &boxes[t];
+        let (lo, hi) = (
+            Vec3::new(bx[0], bx[1], bx[2]),
+            Vec3::new(bx[3], bx[4], bx[5]),
+        );
+        // Degenerate or non-finite (an empty box): never hit.
+        if !(lo.x <= hi.x) {
+            return;
+        }
+        if view.near(lo, hi) {
+            pass.st.eye_near += 1;
+            pass.everywhere(t, nb);
+            return;
+        }
+        pass.st.eye_footprints += faces.rects(view, lo, hi, |r| {
+            for row in r.rows() {
+                prefetch(pass.bk, row);
+                prefetch(pass.bk, row + r.w - 1);
+            }
+            prefetch(&pass.tris.v0, t);
+            prefetch(&pass.tris.v1, t);
+            prefetch(&pass.tris.v2, t);
+            self.ring[self.tail % RING] = (t as u32, r);
+            self.tail += 1;
+        });
+        while self.tail - self.head > AHEAD {
+            let (t, r) = self.ring[self.head % RING];
+            let (_, soon) = self.ring[(self.head + AHEAD / 2) % RING];
+            for row in soon.rows() {
+                let s = pass.bk[row].start as usize;
+                prefetch(pass.pts, s);
+                prefetch(pass.rays, s);
+            }
+            pass.rect(t as usize, &r);
+            self.head += 1;
+        }
+    }
+
+    /// Traces the rectangles still in flight.
+    fn drain<const ANY: bool>(&mut self, pass: &mut Pass<'_, '_, ANY>) {
+        while self.head < self.tail {
+            let (t, r) = self.ring[self.head % RING];
+            pass.rect(t as usize, &r);
+            self.head += 1;
+        }
     }
 }
 
@@ -366,7 +473,8 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
         self.st.eye_buckets += r.buckets() as u64;
         let fp = &r.fp;
         let mut tri = None;
-        let mut cand = [0u32; CANDIDATES];
+        // The candidates' slots and buckets.
+        let (mut cand, mut cb) = ([0u32; CANDIDATES], [0u32; CANDIDATES]);
         let mut nc = 0;
         r.for_each(|b| {
             let bk = self.bk[b];
@@ -390,10 +498,10 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
                     }
                     continue;
                 }
-                cand[nc] = q as u32;
+                (cand[nc], cb[nc]) = (q as u32, b as u32);
                 nc += 1;
                 if nc == CANDIDATES {
-                    self.test(t, &mut tri, &cand);
+                    self.test(t, &mut tri, &cand, &cb);
                     nc = 0;
                 }
             }
@@ -401,8 +509,30 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
             self.bk[b].depth = deepest;
         });
         if nc > 0 {
-            self.test(t, &mut tri, &cand[..nc]);
+            self.test(t, &mut tri, &cand[..nc], &cb[..nc]);
         }
+    }
+
+    /// True when no ray can hit inside box `[lo, hi]` (not near the eye) nearer than its
+    /// best hit: every bucket under the box's footprints is empty or its depth bound lies
+    /// before the footprint's `x0` (a triangle in the box has a footprint inside the box's and
+    /// an `x0` beyond it). Footprints over many buckets answer false.
+    fn hidden(&self, faces: &Faces, view: &LightView, lo: Vec3, hi: Vec3) -> bool {
+        let mut hidden = true;
+        faces.rects(view, lo, hi, |r| {
+            if !hidden {
+                return;
+            }
+            if r.buckets() > HIDDEN_MAX_BUCKETS {
+                hidden = false;
+                return;
+            }
+            r.for_each(|b| {
+                let k = self.bk[b];
+                hidden &= !(k.live > k.start && k.depth as f64 >= r.fp.x0);
+            });
+        });
+        hidden
     }
 
     /// Triangle `t` (near the eye) against every live ray.
@@ -412,7 +542,8 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
             let (s, e) = (self.bk[b].start as usize, self.bk[b].live as usize);
             for q0 in (s..e).step_by(CANDIDATES) {
                 let cand: [u32; CANDIDATES] = std::array::from_fn(|k| (q0 + k) as u32);
-                self.test(t, &mut tri, &cand[..CANDIDATES.min(e - q0)]);
+                let k = CANDIDATES.min(e - q0);
+                self.test(t, &mut tri, &cand[..k], &[b as u32; CANDIDATES][..k]);
             }
         }
     }
@@ -421,7 +552,7 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
     /// once, in `tri`), four at a time: a closest hit updates a ray's best and depth, an any
     /// hit marks it occluded and takes it out of every later test (depth `-inf`).
     #[inline]
-    fn test(&mut self, t: usize, tri: &mut Option<TriFromOrigin>, cand: &[u32]) {
+    fn test(&mut self, t: usize, tri: &mut Option<TriFromOrigin>, cand: &[u32], cb: &[u32]) {
         let eye = self.eye;
         let tris = self.tris;
         let tri = tri.get_or_insert_with(|| {
@@ -429,7 +560,10 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
             TriFromOrigin::new(eye, a, b, c, 0.0)
         });
         self.st.ray_tri += cand.len() as u64;
-        for group in cand.chunks(4) {
+        // Buckets whose rays' depths fell (candidates come bucket by bucket).
+        let mut dirty = [0u32; CANDIDATES];
+        let mut nd = 0;
+        for (gi, group) in cand.chunks(4).enumerate() {
             // A short group repeats its first ray (its extra lanes are ignored).
             let slot = |l: usize| group.get(l).copied().unwrap_or(group[0]) as usize;
             let rays = &self.rays;
@@ -447,6 +581,11 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
                 let l = m.trailing_zeros() as usize;
                 m &= m - 1;
                 let q = group[l] as usize;
+                let b = cb[4 * gi + l];
+                if nd == 0 || dirty[nd - 1] != b {
+                    dirty[nd] = b;
+                    nd += 1;
+                }
                 let p = &mut self.pts[q];
                 if ANY {
                     self.occ[p.ray as usize] = true;
@@ -462,6 +601,12 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
                     p.depth = next_up(x as f32, x);
                 }
             }
+        }
+        // Their depth bounds lowered now, so the kept levels' walk sees them (`hidden`).
+        for &b in &dirty[..nd] {
+            let k = self.bk[b as usize];
+            let pts = &self.pts[k.start as usize..k.live as usize];
+            self.bk[b as usize].depth = pts.iter().fold(f32::NEG_INFINITY, |m, p| m.max(p.depth));
         }
     }
 }

@@ -93,13 +93,13 @@
 //!   start at one point (bitwise: a camera's, shuffled or several samples per pixel) is traced
 //!   in that point's frame, as `dacrt`'s light-space pass traces shadow segments: its rays are
 //!   points on the faces of a cube around the eye (their `u, v`), sorted into buckets of
-//!   `eye_bucket` (4), and the triangles are streamed once, near to far in `eye_bins` (64)
-//!   distance bins, each tested only against the rays of the buckets under its box's
-//!   footprint whose best hit is not nearer than the box (a z-buffer, exact by
-//!   `geom::light_space`). Only when the eye is outside the scene's box (`eye_inside`: from
-//!   inside, the recursion's culls did better on Sponza) and the task holds at least
-//!   `eye_ratio` (1) rays per triangle (the pass streams every triangle per task: the dragon's
-//!   871K triangles for 262K rays gained nothing). BENCHMARKS.md § "dacrt5d: rays from one point".
+//!   `eye_bucket` (4), and the triangles come once, from the kept levels walked near to far
+//!   (`eye_tree`; nodes behind every ray's best hit under them are skipped whole), each
+//!   tested only against the rays of the buckets under its box's footprint whose best hit is
+//!   not nearer than the box (a z-buffer, exact by `geom::light_space`). Only when the eye is
+//!   outside the scene's box (`eye_inside`: from inside, the recursion's culls did better on
+//!   Sponza) and the task holds at least `eye_ratio` (0.25) rays per triangle (each task
+//!   walks the triangles). BENCHMARKS.md § "dacrt5d: rays from one point".
 //! - **Threads** (`run.rs`): rayon tasks over disjoint shares of the rays (as `dacrt`), each with
 //!   its own lists, classifying its share into the bundles and recursing on each (the shared
 //!   splits too are per task).
@@ -122,7 +122,7 @@
 //! bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84` per ray (48 without
 //! box splits). A task that takes the eye pass allocates, besides its `4·T` (the triangle
 //! order), `64·R_k + 12·(⌊R_k / eye_bucket⌋ + 7)` (16 bytes per ray in ray order, 16 + 32 per
-//! ray in its bucket, 12 per bucket) and no records and no kept levels. `tests/dacrt5d.rs`
+//! ray in its bucket, 12 per bucket) and no records; it makes the kept levels as box splits do. `tests/dacrt5d.rs`
 //! checks both with a counting allocator.
 
 mod config;
@@ -254,6 +254,8 @@ crate::counters! {
         eye_buckets,
         /// Eye pass: rays of those buckets checked against the footprint.
         eye_checks,
+        /// Eye pass: triangles skipped in kept nodes behind every ray's best hit (`eye_tree`).
+        eye_hidden,
         /// Rays that left early at a spatial split (hit or `tmax` before the far half).
         terminated,
         /// Triangles surviving the culls at depth 0 (the bundles' roots).
