@@ -88,18 +88,7 @@ pub fn segment_slack(light: Vec3, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Opt
 pub fn segment_view(light: Vec3, o: Vec3, d: Vec3, tmax: f32) -> Option<SegmentView> {
     let w = o.as_dvec3() - light.as_dvec3();
     let e = w + d.as_dvec3() * tmax as f64;
-    let m = w.abs();
-    let k = if m.x >= m.y && m.x >= m.z {
-        0
-    } else if m.y >= m.z {
-        1
-    } else {
-        2
-    };
-    let x = m[k];
-    if !(x > 0.0) {
-        return None;
-    }
+    let (k, x) = face_axis(w)?;
     let s = if w[k] > 0.0 { 1.0 } else { -1.0 };
     let (k1, k2) = others(k);
     let face = 2 * k + (s < 0.0) as usize;
@@ -127,18 +116,7 @@ pub fn ray_view(d: Vec3) -> Option<RayView> {
         return None;
     }
     let w = d.as_dvec3();
-    let m = w.abs();
-    let k = if m.x >= m.y && m.x >= m.z {
-        0
-    } else if m.y >= m.z {
-        1
-    } else {
-        2
-    };
-    let x = m[k];
-    if !(x > 0.0) {
-        return None;
-    }
+    let (k, x) = face_axis(w)?;
     let (k1, k2) = others(k);
     let inv = 1.0 / x;
     Some(RayView {
@@ -197,6 +175,21 @@ pub struct LightView {
     r: f64,
     tau: f64,
     pad: f64,
+}
+
+/// The axis of `w`'s largest magnitude (the first on ties) and that magnitude, `None` when it
+/// is zero or NaN.
+#[inline]
+fn face_axis(w: DVec3) -> Option<(usize, f64)> {
+    let m = w.abs();
+    let k = if m.x >= m.y && m.x >= m.z {
+        0
+    } else if m.y >= m.z {
+        1
+    } else {
+        2
+    };
+    (m[k] > 0.0).then_some((k, m[k]))
 }
 
 /// The two other axes of face `f`'s axis, in increasing order.

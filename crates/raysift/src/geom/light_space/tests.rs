@@ -24,6 +24,26 @@ fn around(rng: &mut impl Rng, scale: f32) -> Vec3 {
     p * scale
 }
 
+/// A point (far from the origin every third round) and 80 triangles small and large around
+/// it, at a scale from 1e-4 to 1e4.
+fn scene_around(rng: &mut impl Rng, round: usize) -> (f32, Vec3, Vec<[Vec3; 3]>) {
+    let scale = 10f32.powi(rng.gen_range(-4..=4));
+    let point = if round % 3 == 0 {
+        Vec3::new(1e3, -2e3, 5e2) * scale
+    } else {
+        around(rng, scale)
+    };
+    let tris = (0..80)
+        .map(|_| {
+            let k = scale * rng.gen_range(0.0..1.5);
+            let c = point + around(rng, k);
+            let size = scale * 10f32.powf(rng.gen_range(-3.0..0.3));
+            [0; 3].map(|_| c + around(rng, size))
+        })
+        .collect();
+    (scale, point, tris)
+}
+
 /// Every hit the shared test reports on a segment ending at (or near) the light lies where the
 /// light-space cull looks for it: the triangle is near the light, or its footprint on the
 /// segment's face holds the segment's coordinates and starts no deeper than the segment's depth.
@@ -37,25 +57,14 @@ fn every_hit_is_inside_its_footprint() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(21);
     let (mut hits, mut far_hits, mut far_pairs, mut culled) = (0u64, 0u64, 0u64, 0u64);
     for round in 0..300 {
-        let scale = 10f32.powi(rng.gen_range(-4..=4));
-        let light = if round % 3 == 0 {
-            Vec3::new(1e3, -2e3, 5e2) * scale
-        } else {
-            around(&mut rng, scale)
-        };
-        let mut tris = Vec::new();
-        for _ in 0..80 {
-            let k = scale * rng.gen_range(0.0..1.5);
-            let c = light + around(&mut rng, k);
-            let size = scale * 10f32.powf(rng.gen_range(-3.0..0.3));
-            let mut t = [0; 3].map(|_| c + around(&mut rng, size));
+        let (scale, light, mut tris) = scene_around(&mut rng, round);
+        for t in &mut tris {
             if rng.gen_range(0..8) == 0 {
                 // Two corners on a line through the light (grazing hits).
                 let p = light + around(&mut rng, scale);
                 t[0] = light + (p - light) * rng.gen_range(0.1..0.9);
                 t[1] = light + (p - light) * rng.gen_range(0.1..0.9);
             }
-            tris.push(t);
         }
         let mut segs = Vec::new();
         for _ in 0..60 {
@@ -173,19 +182,7 @@ fn every_eye_ray_hit_is_inside_its_footprint() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(17);
     let (mut hits, mut far_hits, mut far_pairs, mut culled) = (0u64, 0u64, 0u64, 0u64);
     for round in 0..300 {
-        let scale = 10f32.powi(rng.gen_range(-4..=4));
-        let eye = if round % 3 == 0 {
-            Vec3::new(1e3, -2e3, 5e2) * scale
-        } else {
-            around(&mut rng, scale)
-        };
-        let mut tris = Vec::new();
-        for _ in 0..80 {
-            let k = scale * rng.gen_range(0.0..1.5);
-            let c = eye + around(&mut rng, k);
-            let size = scale * 10f32.powf(rng.gen_range(-3.0..0.3));
-            tris.push([0; 3].map(|_| c + around(&mut rng, size)));
-        }
+        let (_, eye, tris) = scene_around(&mut rng, round);
         let scale_all = tris
             .iter()
             .flatten()

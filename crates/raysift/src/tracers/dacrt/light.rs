@@ -28,15 +28,27 @@ use crate::tracer::CostMut;
 use glam::Vec3;
 use std::ops::Range;
 
-/// One segment in a bucket: its face coordinates and depth bound (f32, see `geom::light_space`
-/// for the pads) and its ray (task-local index): 16 bytes, what the footprint check reads.
+/// One segment (or `dacrt5d`'s eye ray) in a bucket: its face coordinates and depth bound
+/// (f32, see `geom::light_space` for the pads) and its ray (task-local index): 16 bytes, what
+/// the footprint check reads.
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C)]
-pub(super) struct LightPoint {
-    a: f32,
-    b: f32,
-    depth: f32,
-    ray: u32,
+pub(crate) struct LightPoint {
+    pub(crate) a: f32,
+    pub(crate) b: f32,
+    pub(crate) depth: f32,
+    pub(crate) ray: u32,
+}
+
+impl LightPoint {
+    /// True when footprint `fp` does not hold the point's coordinates, or starts deeper than
+    /// its depth bound: no hit inside the footprint's box can be reported for its ray (any
+    /// nearer than its best).
+    #[inline(always)]
+    pub(crate) fn outside(&self, fp: &Footprint) -> bool {
+        let (a, b) = (self.a as f64, self.b as f64);
+        (self.depth as f64) < fp.x0 || a < fp.a[0] || a > fp.a[1] || b < fp.b[0] || b > fp.b[1]
+    }
 }
 
 /// The ray of a [`LightPoint`] (same slot), for the shared test: 32 bytes.
@@ -123,6 +135,37 @@ impl FaceGrid {
     }
 }
 
+/// The points of each cube face: how many, and their coordinates' bounds `[a0, a1, b0, b1]`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FacePoints {
+    count: [usize; 6],
+    bounds: [[f32; 4]; 6],
+}
+
+impl Default for FacePoints {
+    fn default() -> Self {
+        Self {
+            count: [0; 6],
+            bounds: [[
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+            ]; 6],
+        }
+    }
+}
+
+impl FacePoints {
+    /// One more point, on face `f` at `(a, b)`.
+    #[inline]
+    pub(crate) fn add(&mut self, f: usize, a: f32, b: f32) {
+        self.count[f] += 1;
+        let q = &mut self.bounds[f];
+        *q = [q[0].min(a), q[1].max(a), q[2].min(b), q[3].max(b)];
+    }
+}
+
 /// The bucket grids of the six cube faces around one point (a light, or the eye of
 /// `dacrt5d`'s eye pass): shared by both passes.
 #[derive(Clone, Copy, Debug, Default)]
@@ -134,9 +177,9 @@ pub(crate) struct Faces {
 }
 
 impl Faces {
-    /// Grids of about `per` points per bucket, each shaped like its face's points: `count[f]`
-    /// points on face `f` with face coordinates in `bounds[f]` (`[a0, a1, b0, b1]`).
-    pub(crate) fn fit(count: [usize; 6], bounds: [[f32; 4]; 6], per: usize) -> Self {
+    /// Grids of about `per` points per bucket, each shaped like its face's points.
+    pub(crate) fn fit(points: &FacePoints, per: usize) -> Self {
+        let FacePoints { count, bounds } = *points;
         let mut out = Self::default();
         for f in 0..6 {
             if count[f] == 0 {
@@ -330,13 +373,7 @@ impl Dacrt {
         let mut slack = 0.0f64;
         let mut scale = self.scale as f64;
         let mut key = reuse(std::mem::take(&mut sc.key), n, huge);
-        let mut count = [0usize; 6];
-        let mut bounds = [[
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        ]; 6];
+        let mut points = FacePoints::default();
         for i in range.clone() {
             let (o, d) = (rays.origin(i), rays.dir(i));
             let fit = segment_slack(light, o, d, rays.tmin[i], rays.tmax[i])
@@ -346,9 +383,7 @@ impl Dacrt {
                     slack = slack.max(e);
                     scale = scale.max(o.abs().max_element() as f64);
                     let (a, b) = (s.a as f32, s.b as f32);
-                    count[s.face] += 1;
-                    let q = &mut bounds[s.face];
-                    *q = [q[0].min(a), q[1].max(a), q[2].min(b), q[3].max(b)];
+                    points.add(s.face, a, b);
                     Key {
                         a,
                         b,
@@ -362,7 +397,7 @@ impl Dacrt {
         // The grids: about `per` segments per bucket, shaped like the face's segments; the
         // frame: a ball around the light large enough that the footprints' pad is a tenth of
         // the narrowest bucket or less (within `geom::light_space`'s range).
-        let faces = Faces::fit(count, bounds, per);
+        let faces = Faces::fit(&points, per);
         let nb = faces.buckets();
         let narrow = faces.narrowest();
         let Some(view) = LightView::new(light, slack, scale, 0.1 * narrow) else {
@@ -513,13 +548,7 @@ impl Pass<'_, '_> {
         while q < end {
             let p = self.pts[q];
             self.st.ray_box += 1;
-            let (a, bb) = (p.a as f64, p.b as f64);
-            if (p.depth as f64) < fp.x0
-                || a < fp.a[0]
-                || a > fp.a[1]
-                || bb < fp.b[0]
-                || bb > fp.b[1]
-            {
+            if p.outside(fp) {
                 if let Some(c) = self.cost.as_deref_mut() {
                     c.add(p.ray as usize, 0, 1, 0);
                 }

@@ -46,7 +46,7 @@ use crate::geom::{ray_view, LightView, TriFromOrigin, Vec3};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
 use crate::tracer::{closer, CostMut};
-use crate::tracers::dacrt::light::{bucket_cap, next_up, Faces, Rect};
+use crate::tracers::dacrt::light::{bucket_cap, next_up, FacePoints, Faces, LightPoint, Rect};
 use crate::tracers::dacrt::partition::prefetch;
 use crate::tracers::dacrt::scratch::reuse;
 use glam::Vec4;
@@ -56,16 +56,8 @@ use std::ops::Range;
 const MAX_BINS: usize = 1024;
 
 /// A ray in its bucket: its face coordinates, its depth bound (the face-axis coordinate of
-/// its best hit so far, raised to f32) and its task-local index: what the footprint check
-/// reads, 16 bytes.
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C)]
-pub(super) struct EyePoint {
-    a: f32,
-    b: f32,
-    depth: f32,
-    ray: u32,
-}
+/// its best hit so far, raised to f32) and its task-local index, as `light.rs`'s segments.
+type EyePoint = LightPoint;
 
 /// The ray of an [`EyePoint`] (same slot): its direction and `tmin`, and its best hit so far
 /// (`t` starts at `tmax`): 32 bytes.
@@ -147,13 +139,7 @@ impl Dacrt5d {
         // one's face, coordinates (f32: the footprints' pad covers their rounding, and the
         // buckets are taken from these same values) and depth; the faces' bounds and counts.
         let mut key = reuse(std::mem::take(&mut sc.key), n, true);
-        let mut count = [0usize; 6];
-        let mut bounds = [[
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        ]; 6];
+        let mut points = FacePoints::default();
         for i in range.clone() {
             let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
             let fits = o == eye && tmin >= 0.0 && !tmax.is_nan();
@@ -162,9 +148,7 @@ impl Dacrt5d {
                 return false;
             };
             let (a, b) = (r.a as f32, r.b as f32);
-            count[r.face] += 1;
-            let q = &mut bounds[r.face];
-            *q = [q[0].min(a), q[1].max(a), q[2].min(b), q[3].max(b)];
+            points.add(r.face, a, b);
             let x = tmax as f64 * r.axis;
             key.push(EyePoint {
                 a,
@@ -174,7 +158,7 @@ impl Dacrt5d {
             });
         }
         let per = self.cfg.eye_bucket.max(1);
-        let faces = Faces::fit(count, bounds, per);
+        let faces = Faces::fit(&points, per);
         let nb = faces.buckets();
         // The frame: slack 0 (every point of a ray lies along its direction from the eye);
         // the boxes' pad from the scene's and the eye's magnitudes.
@@ -486,13 +470,7 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
                 let p = self.pts[q];
                 self.st.eye_checks += 1;
                 deepest = deepest.max(p.depth);
-                let (a, bb) = (p.a as f64, p.b as f64);
-                if (p.depth as f64) < fp.x0
-                    || a < fp.a[0]
-                    || a > fp.a[1]
-                    || bb < fp.b[0]
-                    || bb > fp.b[1]
-                {
+                if p.outside(fp) {
                     if let Some(c) = self.cost.as_deref_mut() {
                         c.add(p.ray as usize, 0, 1, 0);
                     }
