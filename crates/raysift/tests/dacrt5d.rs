@@ -218,6 +218,21 @@ fn eye_pass_from_one_point() {
             assert_eq!(off.work.get("eye_rays"), 0);
             let few = stats(&s, &rays, &[("eye_ratio", "1e6")]);
             assert_eq!(few.work.get("eye_rays"), 0);
+            // One ray from elsewhere, one with a negative tmin: the recursion takes them all.
+            for k in 0..2 {
+                let mut other = rays.clone();
+                if k == 0 {
+                    other.ox[5] = other.ox[5].next_up();
+                } else {
+                    other.tmin[5] = -1.0;
+                }
+                let st = stats(
+                    &s,
+                    &other,
+                    &[("eye_ratio", "0"), ("eye_inside", "true"), ("tasks", "1")],
+                );
+                assert_eq!(st.work.get("eye_rays"), 0);
+            }
         }
     }
 }

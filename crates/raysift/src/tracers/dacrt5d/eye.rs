@@ -135,15 +135,23 @@ impl Dacrt5d {
         if !self.cfg.eye_inside && eye.cmpge(lo).all() && eye.cmple(hi).all() {
             return false;
         }
-        // Every ray from the eye (bitwise), the shared test's conditions for the pass: each
-        // one's face, coordinates (f32: the footprints' pad covers their rounding, and the
-        // buckets are taken from these same values) and depth; the faces' bounds and counts.
+        // Every ray from the eye (bitwise), with `tmin >= 0` and a `tmax` that is not NaN,
+        // checked before anything is allocated (a batch of rays from many points stops at its
+        // second ray).
+        let fits =
+            |i: usize| rays.origin(i) == eye && rays.tmin[i] >= 0.0 && !rays.tmax[i].is_nan();
+        if !eye.is_finite() || !range.clone().all(fits) {
+            return false;
+        }
+        // Each ray's face, coordinates (f32: the footprints' pad covers their rounding, and the
+        // buckets are taken from these same values) and depth; the faces' bounds and counts. A
+        // zero or non-finite direction (which the loaders refuse) sends the share to the
+        // recursion from here, with the key buffer kept.
         let mut key = reuse(std::mem::take(&mut sc.key), n, true);
         let mut points = FacePoints::default();
         for i in range.clone() {
-            let (o, d, tmin, tmax) = (rays.origin(i), rays.dir(i), rays.tmin[i], rays.tmax[i]);
-            let fits = o == eye && tmin >= 0.0 && !tmax.is_nan();
-            let Some(r) = ray_view(d).filter(|_| fits) else {
+            let (d, tmax) = (rays.dir(i), rays.tmax[i]);
+            let Some(r) = ray_view(d) else {
                 sc.key = key;
                 return false;
             };
