@@ -28,7 +28,7 @@ fn around(rng: &mut impl Rng, scale: f32) -> Vec3 {
 /// it, at a scale from 1e-4 to 1e4.
 fn scene_around(rng: &mut impl Rng, round: usize) -> (f32, Vec3, Vec<[Vec3; 3]>) {
     let scale = 10f32.powi(rng.gen_range(-4..=4));
-    let point = if round % 3 == 0 {
+    let point = if round.is_multiple_of(3) {
         Vec3::new(1e3, -2e3, 5e2) * scale
     } else {
         around(rng, scale)
