@@ -520,6 +520,7 @@ fn memory_is_a_deterministic_linear_function() {
             for (rays, kv) in [
                 (&cam, &[("cull", "frustum"), ("eye", "false")][..]),
                 (&cam, &[("eye_ratio", "0")][..]),
+                (&cam, &[("eye_ratio", "0"), ("eye_tree", "false")][..]),
                 (&random, &[("cull", "cone")][..]),
                 (&random, &[("stop", "fixed"), ("spatial", "false")][..]),
             ] {
@@ -581,7 +582,7 @@ fn memory_is_a_deterministic_linear_function() {
                 };
                 assert_eq!(
                     built > 0,
-                    !kv.contains(&("spatial", "false")),
+                    !kv.contains(&("spatial", "false")) && !kv.contains(&("eye_tree", "false")),
                     "{kv:?}: box splits and the eye pass walk the kept levels"
                 );
                 assert_eq!(prepare, 24 * t, "{kv:?}");

@@ -234,6 +234,8 @@ impl Dacrt5d {
         // triangles near to far in `eye_bins` bins of their boxes' distance (index order
         // inside a bin, a counting sort into `order`). Either way a ray's best hit comes early,
         // and the buckets' depths then cull what lies behind it.
+        // The task's triangle list (the recursion's `4·T`, kept in the pool slot for it): the
+        // bins' order when there is no walk.
         let mut ord = reuse(std::mem::take(order), self.boxes.len(), true);
         let mut stream = Stream::new();
         let tree = (self.cfg.eye_tree && self.cfg.top_leaf > 0).then(|| {
@@ -270,13 +272,7 @@ impl Dacrt5d {
                     continue;
                 }
                 let k = node.kids as usize;
-                let gap = |i: usize| {
-                    let s = &top.nodes[i].set;
-                    (s.lo - eye)
-                        .max(eye - s.hi)
-                        .max(Vec3::ZERO)
-                        .length_squared()
-                };
+                let gap = |i: usize| gap(eye, top.nodes[i].set.lo, top.nodes[i].set.hi);
                 let (near, far) = if gap(k) <= gap(k + 1) {
                     (k, k + 1)
                 } else {
@@ -288,7 +284,6 @@ impl Dacrt5d {
             }
         } else {
             let bins = self.cfg.eye_bins.min(MAX_BINS);
-            let mut ord = reuse(std::mem::take(order), self.boxes.len(), true);
             if bins > 0 {
                 let far = (eye - lo).abs().max((eye - hi).abs()).length();
                 let scale = if far > 0.0 { bins as f32 / far } else { 0.0 };
@@ -297,9 +292,8 @@ impl Dacrt5d {
                         Vec3::new(bx[0], bx[1], bx[2]),
                         Vec3::new(bx[3], bx[4], bx[5]),
                     );
-                    let gap = (lo - eye).max(eye - hi).max(Vec3::ZERO).length();
                     // NaN-safe (`as` saturates): a bin in range.
-                    ((gap * scale) as usize).min(bins - 1)
+                    ((gap(eye, lo, hi) * scale) as usize).min(bins - 1)
                 };
                 // On the stack: nothing is allocated per call.
                 let mut at = [0u32; MAX_BINS + 1];
@@ -437,6 +431,12 @@ impl Stream {
             self.head += 1;
         }
     }
+}
+
+/// The distance from `eye` to the box `[lo, hi]` (0 inside it).
+#[inline]
+fn gap(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    (lo - eye).max(eye - hi).max(Vec3::ZERO).length()
 }
 
 /// Candidates of one triangle gathered before they are tested four at a time.
