@@ -6,6 +6,7 @@
 //! function on the same data (see `triangle`).
 
 pub mod aabb;
+pub mod aligned;
 pub mod cone_frustum;
 pub mod cone_triangle;
 pub mod conebox;

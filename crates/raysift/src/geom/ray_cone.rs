@@ -85,7 +85,39 @@ impl RayCone {
     /// True when the shared triangle test refuses triangle `(v0, v1, v2)` for every ray from
     /// `origin` whose direction lies in the cone, whatever its `tmin` and `tmax`.
     pub fn misses(&self, origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
-        // The test's own f32 values.
+        let f = EdgeForms::new(origin, v0, v1, v2);
+        // Orient so that `det > 0` on the whole cone, or give up.
+        let sign = if self.min_of(f.det) > f.cd {
+            1.0
+        } else if self.min_of(-f.det) > f.cd {
+            -1.0
+        } else {
+            return false;
+        };
+        let [_, u, v, sum] = f.refusals(sign);
+        // `u < 0`, `v < 0` or `u + v > 1` on every ray.
+        [u, v, sum].iter().any(|&(a, c)| self.min_of(-a) > c)
+    }
+}
+
+/// The shared triangle test's barycentric numbers for rays from one origin, as linear forms of
+/// the direction, with their f32 rounding bounds per unit of `|d|` (module doc): `det = d·det`,
+/// `u·det = d·u`, `v·det = d·v`. Shared by [`RayCone`] and the aligned ray-plane form
+/// ([`super::aligned`]).
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeForms {
+    pub det: DVec3,
+    pub u: DVec3,
+    pub v: DVec3,
+    pub cd: f64,
+    pub cu: f64,
+    pub cv: f64,
+}
+
+impl EdgeForms {
+    /// The forms of triangle `(v0, v1, v2)` for rays from `origin`, from the f32 values the
+    /// test itself computes.
+    pub fn new(origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
         let (e1, e2, s) = (v1 - v0, v2 - v0, origin - v0);
         let q = s.cross(e1);
         let f = |v: Vec3| v.as_dvec3();
@@ -94,29 +126,35 @@ impl RayCone {
             let (a, b) = (a.abs(), e2.abs());
             a.x * (b.y + b.z) + a.y * (b.x + b.z) + a.z * (b.x + b.y)
         };
-        let (cd, cu) = (8.0 * U * k(e1), 8.0 * U * k(s));
-        let cv = 4.0 * U * (q.x.abs() + q.y.abs() + q.z.abs());
-        let a_d = e2.cross(e1);
-        // Orient so that `det > 0` on the whole cone, or give up.
-        let sign = if self.min_of(a_d) > cd {
-            1.0
-        } else if self.min_of(-a_d) > cd {
-            -1.0
-        } else {
-            return false;
-        };
-        let (a_d, a_u, a_v) = (a_d * sign, e2.cross(s) * sign, q * sign);
-        let most_det = a_d.length() + cd;
-        // `u < 0` or `v < 0` on every ray, the quotient well away from zero.
-        let below = |a: DVec3, c: f64| {
-            let m = self.min_of(-a);
-            m > c && m / most_det > 1e-30
-        };
-        if below(a_u, cu) || below(a_v, cv) {
-            return true;
+        Self {
+            det: e2.cross(e1),
+            u: e2.cross(s),
+            v: q,
+            cd: 8.0 * U * k(e1),
+            cu: 8.0 * U * k(s),
+            cv: 4.0 * U * (q.x.abs() + q.y.abs() + q.z.abs()),
         }
-        // `u + v > 1` on every ray.
-        self.min_of(a_u + a_v - a_d) > cu + cv + 2.0 * cd + 1e-5 * a_d.length()
+    }
+
+    /// With `det` of sign `sign` (±1) proven on every ray (`sign·det > cd`), the forms and
+    /// bounds `(a, c)` whose value `d·a < −c` (`|d| = 1`) on a ray proves that the test refuses
+    /// it: `u < 0` (the quotient well away from zero), `v < 0`, `u + v > 1` (the three bounds,
+    /// twice the `det` bound and `10⁻⁵·|det|`: the two roundings of each quotient and the one of
+    /// the sum). First the oriented `det` with its bound.
+    pub fn refusals(&self, sign: f64) -> [(DVec3, f64); 4] {
+        let (d, u, v) = (self.det * sign, self.u * sign, self.v * sign);
+        // The quotient `u·det / det` must not round to zero: `|u·det| > 1e-30·|det|`.
+        let most_det = d.length() + self.cd;
+        let tiny = 1e-30 * most_det;
+        [
+            (d, self.cd),
+            (u, self.cu.max(tiny)),
+            (v, self.cv.max(tiny)),
+            (
+                d - u - v,
+                self.cu + self.cv + 2.0 * self.cd + 1e-5 * d.length(),
+            ),
+        ]
     }
 }
 
