@@ -63,7 +63,7 @@ impl AlignedFit {
     pub fn new(frame: [Vec3; 3]) -> Self {
         Self {
             v: frame.map(|v| v.as_dvec3()),
-            eps: self.eps * (1.0 + 1e-6) + 1e-12,
+            eps: 0.0,
             gz: f64::INFINITY,
             ok: true,
         }
