@@ -7,7 +7,8 @@
 //! levels, then the depth cull) on 16×16 area-light shadow grids and (unless `shadow`) 8×8
 //! hemisphere bounce grids from camera hits.
 //! `... -- table5 [scene] [origins]`: the same shadow grids timed: rtrps (planes) vs its random-ray
-//! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3.
+//! mode vs `bvh` and `dacrt` (occlusion), alternating, medians of 3 (`RTRPS_ONLY=a,b`: only the
+//! first contender and those whose names contain `a` or `b`).
 //! `... -- crossover [scene] [origins]`: shadow grids of side 1…32 from the same points: per ray,
 //! ray-planes against random rays and `bvh` (Fig. 10's question: from which group size).
 //! `... -- table6 [scene] [frames]`: first hit at 1024²: update + trace per frame under
@@ -247,10 +248,43 @@ fn table5(spec: &str, origins: usize, bounce: bool) {
             "rtrps",
             opts(&[("ray_check", "false")]),
         ),
+        (
+            "rtrps common origin (no aligned form)",
+            "rtrps",
+            opts(&[("tri_test", "origin")]),
+        ),
+        (
+            "rtrps aligned, no ray check",
+            "rtrps",
+            opts(&[("tri_test", "aligned"), ("ray_check", "false")]),
+        ),
+        (
+            "rtrps aligned",
+            "rtrps",
+            opts(&[("tri_test", "aligned")]),
+        ),
+        (
+            "rtrps leaves of 4, common origin",
+            "rtrps",
+            opts(&[("tri_test", "origin"), ("leaf_size", "4")]),
+        ),
+        (
+            "rtrps leaves of 4, aligned",
+            "rtrps",
+            opts(&[("tri_test", "aligned"), ("leaf_size", "4")]),
+        ),
         ("rtrps random rays", "rtrps", opts(&[("mode", "random")])),
         ("bvh", "bvh", vec![]),
         ("dacrt", "dacrt", vec![]),
     ];
+    // `RTRPS_ONLY=a,b`: the first contender and those whose names contain `a` or `b`.
+    let only = std::env::var("RTRPS_ONLY").unwrap_or_default();
+    let contenders: Vec<Contender> = contenders
+        .into_iter()
+        .enumerate()
+        .filter(|(k, c)| *k == 0 || only.is_empty() || only.split(',').any(|w| c.0.contains(w)))
+        .map(|(_, c)| c)
+        .collect();
     let mut live: Vec<_> = contenders
         .iter()
         .map(|(_, n, o)| tracers::create(n, o).unwrap())
@@ -483,6 +517,11 @@ fn crossover(spec: &str, origins: usize) {
             "rtrps",
             opts(&[("tri_test", "origin")]),
         ),
+        (
+            "rtrps aligned",
+            "rtrps",
+            opts(&[("tri_test", "aligned")]),
+        ),
     ];
     let mut live: Vec<_> = contenders
         .iter()
@@ -496,8 +535,8 @@ fn crossover(spec: &str, origins: usize) {
         scene.len(),
         rayon::current_num_threads()
     );
-    println!("| side | rays | planes ns/ray | random ns/ray | bvh ns/ray | planes / random | plane tests/ray | spheres/ray (planes) | tri tests/ray (planes) | sphere tests/ray (random) | tri tests/ray (random) | planes, Möller ns/ray | planes, common origin ns/ray | common origin / Möller |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| side | rays | planes ns/ray | random ns/ray | bvh ns/ray | planes / random | plane tests/ray | spheres/ray (planes) | tri tests/ray (planes) | sphere tests/ray (random) | tri tests/ray (random) | planes, Möller ns/ray | planes, common origin ns/ray | common origin / Möller | planes, aligned ns/ray | aligned / Möller | tri tests/ray (common origin) | tri tests/ray (aligned) | span-culled rays/ray (aligned) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for side in [1, 2, 4, 8, 16, 32] {
         let (sh, _) = shadow_and_bounce(&scene, origins, side);
         let mut times = vec![Vec::new(); live.len()];
@@ -520,7 +559,7 @@ fn crossover(spec: &str, origins: usize) {
         let ns = |k: usize| median(times[k].clone()) * 1e6 / n;
         let per = |k: usize, c: &str| work[k].get(c) as f64 / n;
         println!(
-            "| {side} | {} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} | {:.0} | {:.0} | {:.2} |",
+            "| {side} | {} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {:.2} | {:.2} | {:.1} | {:.2} | {:.0} | {:.0} | {:.2} | {:.0} | {:.2} | {:.2} | {:.2} | {:.2} |",
             sh.len(),
             ns(0),
             ns(1),
@@ -534,6 +573,11 @@ fn crossover(spec: &str, origins: usize) {
             ns(3),
             ns(4),
             ns(4) / ns(3),
+            ns(5),
+            ns(5) / ns(3),
+            per(4, "tri_tests"),
+            per(5, "tri_tests"),
+            per(5, "span_culled"),
         );
     }
 }

@@ -204,6 +204,7 @@ fn triangle_test_forms_on_ties_tmin_per_ray_and_signed_zero_origins() {
             [("tri_test", "moller"), ("box_check", "false")],
             [("tri_test", "origin"), ("box_check", "false")],
             [("tri_test", "origin"), ("box_check", "true")],
+            [("tri_test", "aligned"), ("box_check", "false")],
         ];
         let results: Vec<_> = opts.iter().map(|o| closest_with(&scene, &b, o).0).collect();
         for r in &results[1..] {
@@ -211,6 +212,58 @@ fn triangle_test_forms_on_ties_tmin_per_ray_and_signed_zero_origins() {
             assert_eq!(r.t, results[0].t, "side {side}");
         }
         assert!(results[0].prim.iter().any(|&p| p != u32::MAX));
+    }
+}
+
+/// The aligned ray-plane form (`tri_test=aligned`) only removes triangle tests: with leaves of
+/// one triangle, every reproduced ray it refuses is one the common-origin form tests and finds
+/// no hit in, so the counts add up exactly and the answers are equal, for closest hits and
+/// occlusion, from jittered grids of 16×16 and 5×5 around an icosphere, from inside it, and
+/// from its surface (a body beneath each origin). Every preset runs too (`check`).
+#[test]
+fn aligned_form_only_removes_tests() {
+    let scene = procedural::icosphere(3000);
+    let mut origins: Vec<Vec3> = (0..8)
+        .map(|k| Vec3::new(2.5, k as f32 * 0.2 - 0.7, 0.3))
+        .collect();
+    origins.push(Vec3::new(0.2, 0.1, 0.0));
+    origins.push(Vec3::new(0.0, 0.0, 1.0));
+    for (side, spread) in [(16usize, 0.4f32), (5, 0.05)] {
+        let mut rays = grids(&origins, -Vec3::X + Vec3::Z * 0.2, side, spread);
+        // Jittered by up to a third of a cell: the rows' `a_y` spread, which the spans bound.
+        let cell = 2.0 * spread / side as f32;
+        for k in 0..rays.len() {
+            let h = |s: u32| ((k as u32).wrapping_mul(2654435761).wrapping_add(s) >> 8) as f32;
+            rays.dy[k] += cell * 0.33 * ((h(1) / 16777216.0) * 2.0 - 1.0);
+            rays.dz[k] += cell * 0.33 * ((h(977) / 16777216.0) * 2.0 - 1.0);
+        }
+        let (h_o, o) = closest_with(&scene, &rays, &[("tri_test", "origin")]);
+        let (h_a, a) = closest_with(&scene, &rays, &[("tri_test", "aligned")]);
+        assert_eq!(raysift::testkit::first_difference(&h_o, &h_a), None);
+        assert_eq!(o.get("span_culled") + o.get("spans"), 0, "{o:?}");
+        assert!(a.get("span_culled") > 0 && a.get("spans") > 0, "{a:?}");
+        assert_eq!(
+            a.get("tri_tests") + a.get("span_culled"),
+            o.get("tri_tests"),
+            "side {side}: {a:?} vs {o:?}"
+        );
+        assert!(3 * a.get("tri_tests") < 2 * o.get("tri_tests"), "{a:?} vs {o:?}");
+        let any = |opts: &[(&str, &str)]| {
+            let opts: Vec<(String, String)> = opts
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect();
+            let mut t = tracers::create("rtrps", &opts).unwrap();
+            t.prepare(&scene).unwrap();
+            t.occluded_timed(&scene, &rays).unwrap()
+        };
+        let (occ_o, st_o) = any(&[("tri_test", "origin")]);
+        let (occ_a, st_a) = any(&[("tri_test", "aligned")]);
+        assert_eq!(occ_o, occ_a);
+        assert!(occ_a.iter().any(|&b| b) && occ_a.iter().any(|&b| !b));
+        assert!(st_a.work.get("span_culled") > 0, "{:?}", st_a.work);
+        assert!(st_a.work.get("tri_tests") < st_o.work.get("tri_tests"));
+        check(&scene, &rays);
     }
 }
 

@@ -121,29 +121,31 @@ impl AlignedRow {
 /// One triangle's forms projected on a group's frame (the paper's first stage, per triangle).
 #[derive(Clone, Copy, Debug)]
 pub struct AlignedTri {
-    /// `(v_x·F, v_y·F, v_z·F)` and the bound `c + eps·|F|` of `det` and of the three refusal
-    /// forms of each orientation (`[sign +, sign −]`).
-    f: [[([f64; 3], f64); 4]; 2],
-    gz: f64,
+    /// `(v_x·F, v_y·F, v_z·F)` of `det`, `u·det`, `v·det` and `det − u·det − v·det`
+    /// ([`EdgeForms::refusals`] with sign +1).
+    h: [[f64; 3]; 4],
+    /// Their bounds `(c + eps·|F|)/g_z` (`g_z` the group's least).
+    c: [f64; 4],
+    /// `1/(v_x·F)` of the three refusal forms (the spans' quotients as products).
+    inv: [f64; 3],
 }
 
-/// A span that keeps every ray, and one that keeps none.
+/// A span that keeps every ray.
 pub const ALL: (f32, f32) = (f32::NEG_INFINITY, f32::INFINITY);
+/// A span that keeps none.
 pub const NONE: (f32, f32) = (f32::INFINITY, f32::NEG_INFINITY);
 
 impl AlignedTri {
     /// Triangle `(v0, v1, v2)` for the group's rays from `origin`.
     pub fn new(g: &AlignedGroup, origin: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> Self {
-        let forms = EdgeForms::new(origin, v0, v1, v2);
-        let side = |sign: f64| {
-            forms.refusals(sign).map(|(a, c)| {
-                let h = [g.v[0].dot(a), g.v[1].dot(a), g.v[2].dot(a)];
-                (h, c + g.eps * a.length() + 1e-12 * a.length())
-            })
-        };
+        let f = EdgeForms::new(origin, v0, v1, v2).refusals(1.0);
+        let v = &g.v;
+        let h = f.map(|(a, _)| [v[0].dot(a), v[1].dot(a), v[2].dot(a)]);
         Self {
-            f: [side(1.0), side(-1.0)],
-            gz: g.gz,
+            h,
+            // `|F|₁ ≥ |F|`, and the f64 rounding of the projections.
+            c: f.map(|(a, c)| (c + (g.eps + 1e-12) * a.abs().element_sum()) / g.gz),
+            inv: [1, 2, 3].map(|k| 1.0 / h[k][0]),
         }
     }
 
@@ -151,24 +153,29 @@ impl AlignedTri {
     /// ray of the row ([`ALL`] when `det`'s sign is not proven on the whole row, [`NONE`] when
     /// every ray is refused). The bounds are rounded outwards to f32.
     pub fn span(&self, row: &AlignedRow) -> (f32, f32) {
-        // `F(d)/g_z` over the row's rays lies within `a_x·h_x + y·h_y + h_z ± (δ·|h_y|)`, plus
-        // the residual's `eps·|F|/g_z`.
+        // `F(d)/g_z` over the row's rays lies within `a_x·h_x + y·h_y + h_z ± δ·|h_y|`, give or
+        // take the residual's `eps·|F|/g_z` (in `c`); `det` must clear its bound with one sign
+        // at both ends of the row (it is linear in `a_x`).
         let at = |h: &[f64; 3], x: f64| x * h[0] + row.y * h[1] + h[2];
-        let Some(side) = self.f.iter().find(|f| {
-            let (h, c) = &f[0];
-            let need = c / self.gz + row.dy * h[1].abs();
-            at(h, row.x[0]) > need && at(h, row.x[1]) > need
-        }) else {
+        let (hd, need) = (&self.h[0], self.c[0] + row.dy * self.h[0][1].abs());
+        let (d0, d1) = (at(hd, row.x[0]), at(hd, row.x[1]));
+        let sign = if d0 > need && d1 > need {
+            1.0
+        } else if -d0 > need && -d1 > need {
+            -1.0
+        } else {
             return ALL;
         };
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-        for (h, c) in &side[1..] {
-            // Refused where `a_x·h_x < k`: every value of the row's rays is then below `−c`.
-            let k = -c / self.gz - (row.y * h[1] + h[2]) - row.dy * h[1].abs();
-            if h[0] > 0.0 {
-                lo = lo.max(k / h[0]);
-            } else if h[0] < 0.0 {
-                hi = hi.min(k / h[0]);
+        for ((h, c), inv) in self.h[1..].iter().zip(&self.c[1..]).zip(&self.inv) {
+            // The refusal form is `sign·F`: refused where `a_x·sign·h_x < k`, every value of
+            // the row's rays then being below `−c`.
+            let k = -c - sign * (row.y * h[1] + h[2]) - row.dy * h[1].abs();
+            let hx = sign * h[0];
+            if hx > 0.0 {
+                lo = lo.max(k * sign * inv);
+            } else if hx < 0.0 {
+                hi = hi.min(k * sign * inv);
             } else if k > 0.0 {
                 return NONE;
             }
@@ -179,7 +186,7 @@ impl AlignedTri {
         if lo > hi {
             return NONE;
         }
-        // The quotients' f64 rounding, then outwards to f32.
+        // The quotients' f64 rounding (a reciprocal, then a product), then outwards to f32.
         let lo = lo - 1e-12 * lo.abs();
         let hi = hi + 1e-12 * hi.abs();
         let (mut l, mut h) = (lo as f32, hi as f32);

@@ -106,11 +106,17 @@ impl RayCone {
 /// ([`super::aligned`]).
 #[derive(Clone, Copy, Debug)]
 pub struct EdgeForms {
+    /// `det = d·det`.
     pub det: DVec3,
+    /// `u·det = d·u`.
     pub u: DVec3,
+    /// `v·det = d·v`.
     pub v: DVec3,
+    /// Rounding bound of `det`, per unit of `|d|`.
     pub cd: f64,
+    /// Rounding bound of `u·det`.
     pub cu: f64,
+    /// Rounding bound of `v·det`.
     pub cv: f64,
 }
 

@@ -8,6 +8,7 @@ use super::{random, Config, Counts, TriTest};
 use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
 use crate::geom::lanes::{self, Width};
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
+use crate::geom::aligned::{AlignedFit, AlignedGroup, AlignedRow, AlignedTri};
 use crate::geom::{RayCone, TriFromOrigin};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
@@ -132,6 +133,14 @@ pub struct Scratch {
     pub(super) tris: Vec<TriFromOrigin<f32>>,
     /// A cone holding the group's directions (`edge_cull`).
     pub(super) cone: Option<RayCone>,
+    /// The aligned ray-plane form (`tri_test=aligned`): the group's fit, each ray's grid
+    /// coordinate `a_x` (padded as the rays) and `a_y`, each row's spread (by index), and the
+    /// current leaf's triangles projected on the frame (built on first use).
+    pub(super) align: Option<AlignedGroup>,
+    pub(super) ax: Vec<f32>,
+    pub(super) ay: Vec<f32>,
+    pub(super) arows: Vec<AlignedRow>,
+    pub(super) atris: Vec<AlignedTri>,
     /// Any hit: each row's finished columns (by index).
     pub(super) done: [u64; MAX_FAN],
     /// Any hit: finished rays per column (by index).
@@ -183,6 +192,11 @@ impl Scratch {
             rows: PlaneFan::default(),
             cols: PlaneFan::default(),
             depth: None,
+            align: None,
+            ax: Vec::new(),
+            ay: Vec::new(),
+            arows: Vec::new(),
+            atris: Vec::new(),
         }
     }
 
@@ -190,12 +204,15 @@ impl Scratch {
     pub fn bytes(&self) -> usize {
         let f = [
             &self.dx, &self.dy, &self.dz, &self.tmin, &self.tmax, &self.gx, &self.gy, &self.gz,
-            &self.ix, &self.iy, &self.iz, &self.bt, &self.bu, &self.bv, &self.dl,
+            &self.ix, &self.iy, &self.iz, &self.bt, &self.bu, &self.bv, &self.dl, &self.ax,
+            &self.ay,
         ];
         self.g.capacity() * 12
             + f.iter().map(|v| v.capacity() * 4).sum::<usize>()
             + self.bp.capacity() * 4
             + self.tris.capacity() * std::mem::size_of::<TriFromOrigin<f32>>()
+            + self.arows.capacity() * std::mem::size_of::<AlignedRow>()
+            + self.atris.capacity() * std::mem::size_of::<AlignedTri>()
             + std::mem::size_of::<Self>()
     }
 
@@ -252,6 +269,36 @@ impl Scratch {
             self.bv.clear();
             self.bv.resize(n, 0.0);
         }
+    }
+
+    /// The aligned form's data of group `g` in `frame` (after [`Self::load`]): each ray's grid
+    /// point (pads repeat their row's first), each row's spread, and the group's fit; `None`
+    /// when a ray lies more than 60° from the frame's `z`.
+    fn align(&mut self, g: GroupSpec, frame: [Vec3; 3]) {
+        let n = g.rows * self.rs;
+        self.ax.clear();
+        self.ax.resize(n, 0.0);
+        self.ay.clear();
+        self.ay.resize(n, 0.0);
+        self.arows.clear();
+        let mut fit = AlignedFit::new(frame);
+        for i in 0..g.rows {
+            let row = i * self.rs;
+            for k in 0..self.rs {
+                let at = row + k;
+                if k >= g.cols {
+                    (self.ax[at], self.ay[at]) = (self.ax[row], self.ay[row]);
+                    continue;
+                }
+                let d = Vec3::new(self.dx[at], self.dy[at], self.dz[at]);
+                let u = Vec3::new(self.gx[at], self.gy[at], self.gz[at]);
+                (self.ax[at], self.ay[at]) = fit.add(d, u);
+            }
+            let (ax, ay) = (&self.ax[row..row + g.cols], &self.ay[row..row + g.cols]);
+            self.arows
+                .push(AlignedRow::of(ax.iter().copied().zip(ay.iter().copied())));
+        }
+        self.align = fit.done();
     }
 
     /// Any hit: the rays of row `i` in columns `m` (by index) are finished; a row or column
@@ -579,6 +626,9 @@ pub(super) struct Walk<'a> {
     /// Reproduced rays go through the common-origin form ([`Walk::rows`]), else one at a time
     /// through the shared test (in [`Walk::leaf`]).
     pub(super) origin_form: bool,
+    /// The aligned ray-plane form culls reproduced rays before the common-origin form
+    /// (`s.align` is set).
+    pub(super) aligned: bool,
 }
 
 impl Walk<'_> {
@@ -728,6 +778,14 @@ pub fn trace(
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
     s.load(rays, g, matches!(out, Out::Hits(_)), cfg.box_check);
+    // `auto` never takes the aligned form: it removes 70% of the triangle tests and costs more
+    // than they did at every group size measured (BENCHMARKS.md § RTRPS, "The aligned
+    // ray-plane form").
+    let aligned = cfg.tri_test == TriTest::Aligned;
+    s.align = None;
+    if aligned {
+        s.align(g, frame);
+    }
     s.cut = cfg.hit_cut && matches!(out, Out::Hits(_)) && s.depth.is_some();
     if s.cut {
         s.dirty = mask(g.rows);
@@ -762,10 +820,11 @@ pub fn trace(
         start,
         w: lanes::width(),
         origin_form: match cfg.tri_test {
-            TriTest::Origin => true,
+            TriTest::Origin | TriTest::Aligned => true,
             TriTest::Moller => false,
             TriTest::Auto => nr >= ORIGIN_FORM_RAYS,
         },
+        aligned: aligned && s.align.is_some(),
     };
     // The part tree depth first (its root is the scene sphere), world spheres brought into the
     // grid frame; a bottom node's parts each get their own frame. A fixed stack, deep enough for

@@ -4,6 +4,7 @@
 
 use super::group::{Frame, Out, Scratch, Walk, EDGE_CULL_RAYS};
 use super::Counts;
+use crate::geom::aligned::{AlignedTri, ALL, NONE};
 use crate::geom::lanes::{Lanes, Width};
 use crate::geom::{intersect_triangle, slab_lanes, TriFromOrigin};
 use crate::tracer::{closer, CostMut};
@@ -74,6 +75,7 @@ impl Walk<'_> {
             .filter(|_| self.cfg.hit_cut && closest)
             .map(|(c, r)| (c, r + c.length() * 2e-5));
         s.tris.clear();
+        s.atris.clear();
         let leaf = Leaf {
             rm,
             cols,
@@ -205,12 +207,21 @@ impl Walk<'_> {
         let lane_bits = (1u64 << L::N) - 1;
         let o = self.rays.origin(g.base);
         let mut bounds: Option<([f32; 3], [f32; 3])> = None;
+        // The aligned form (`self.aligned`): each triangle's span of `a_x` on the current row,
+        // and each triangle's lanes in the current chunk (all lanes without it).
+        let nt = ids.len();
+        let spanned = self.aligned && nt <= MAX_SPANS;
+        let mut spans = [ALL; MAX_SPANS];
+        let mut tm = [u32::MAX; MAX_SPANS];
         let mut rbits = leaf.rm;
         while rbits != 0 {
             let a = rbits.trailing_zeros() as usize;
             rbits &= rbits - 1;
             let i = s.rows.order[a] as usize;
             let want = leaf.cols & !s.done[i];
+            // The row's spans, made when a first chunk of it passes the checks below; `None`
+            // once they refuse the whole row.
+            let mut row_spans = Some(false);
             for ch in (0..g.cols).step_by(L::N) {
                 let bits = (want >> ch & lane_bits) as u32;
                 if bits == 0 {
@@ -239,6 +250,43 @@ impl Walk<'_> {
                     let before = keep;
                     keep &= L::bitmask((along - L::splat(r)).cmple(lim));
                     n.hit_culled += u64::from((before & !keep).count_ones());
+                    if keep == 0 {
+                        continue;
+                    }
+                }
+                if spanned {
+                    // The paper's second stage (per row plane), made a cull: the interval of
+                    // the row's `a_x` outside which the shared test refuses (`geom::aligned`).
+                    if row_spans == Some(false) {
+                        if s.atris.is_empty() {
+                            let grid = s.align.expect("aligned walks have a fit");
+                            s.atris.extend(ids.iter().map(|&p| {
+                                let p = p as usize;
+                                AlignedTri::new(&grid, o, soup.v0[p], soup.v1[p], soup.v2[p])
+                            }));
+                        }
+                        let row = s.arows[i];
+                        let mut none = true;
+                        for (sp, t) in spans.iter_mut().zip(&s.atris) {
+                            *sp = t.span(&row);
+                            none &= *sp == NONE;
+                        }
+                        n.spans += nt as u64;
+                        row_spans = if none { None } else { Some(true) };
+                    }
+                    if row_spans.is_none() {
+                        n.span_culled += u64::from(keep.count_ones());
+                        continue;
+                    }
+                    // The third stage: a ray's `a_x` against each span.
+                    let (ax, before) = (ld(&s.ax, at), keep);
+                    let mut any = 0;
+                    for (m, sp) in tm.iter_mut().zip(&spans[..nt]) {
+                        *m = L::bitmask(ax.cmpge(L::splat(sp.0)) & ax.cmple(L::splat(sp.1)));
+                        any |= *m;
+                    }
+                    keep &= any;
+                    n.span_culled += u64::from((before & !keep).count_ones());
                     if keep == 0 {
                         continue;
                     }
@@ -285,22 +333,33 @@ impl Walk<'_> {
                         TriFromOrigin::new(o, soup.v0[p], soup.v1[p], soup.v2[p], dlow)
                     }));
                 }
-                let tests = ids.len() as u64;
-                n.tri_tests += tests * u64::from(keep.count_ones());
-                if let Some(c) = cost.as_deref_mut() {
-                    let mut m = keep;
-                    while m != 0 {
-                        let r = g.ray(i, ch + m.trailing_zeros() as usize);
-                        m &= m - 1;
-                        c.add(r - start, 1, tests, tests);
+                // Each lane's tests: the triangles whose span holds it.
+                let tests = |k: usize| {
+                    if spanned {
+                        tm[..nt].iter().filter(|&&m| m >> k & 1 == 1).count() as u64
+                    } else {
+                        nt as u64
+                    }
+                };
+                let mut m = keep;
+                while m != 0 {
+                    let k = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    n.tri_tests += tests(k);
+                    if let Some(c) = cost.as_deref_mut() {
+                        c.add(g.ray(i, ch + k) - start, 1, tests(k), tests(k));
                     }
                 }
                 match out {
                     Out::Hits(_) => {
                         let mut bt = ld(&s.bt, at);
                         for (q, tri) in s.tris.iter().enumerate() {
+                            let lanes = keep & tm[q.min(MAX_SPANS - 1)];
+                            if lanes == 0 {
+                                continue;
+                            }
                             let h = tri.intersect_lanes_each(d, tmin, bt);
-                            let mut m = h.mask & keep;
+                            let mut m = h.mask & lanes;
                             if m == 0 {
                                 continue;
                             }
@@ -322,8 +381,12 @@ impl Walk<'_> {
                     Out::Occluded(oc) => {
                         let tmax = ld(&s.tmax, at);
                         let mut fin = 0u32;
-                        for tri in &s.tris {
-                            let m = tri.intersect_lanes_each(d, tmin, tmax).mask & keep;
+                        for (q, tri) in s.tris.iter().enumerate() {
+                            let lanes = keep & tm[q.min(MAX_SPANS - 1)];
+                            if lanes == 0 {
+                                continue;
+                            }
+                            let m = tri.intersect_lanes_each(d, tmin, tmax).mask & lanes;
                             if m == 0 {
                                 continue;
                             }
@@ -349,6 +412,9 @@ impl Walk<'_> {
         }
     }
 }
+
+/// Leaves of more triangles than this skip the aligned form (`leaf_size` is at most 64).
+const MAX_SPANS: usize = 64;
 
 /// What [`Walk::rows`] needs of a leaf that passed its sphere test.
 pub(super) struct Leaf {

@@ -165,8 +165,10 @@ pub struct Config {
     pub edge_cull: bool,
     /// The ray/triangle test of reproduced rays (§3.2, Table 2): `moller` (the shared test, one
     /// ray at a time), `origin` (its common-origin form, prepared once per leaf visit and run
-    /// four rays at a time: bit-identical), or `auto` (`origin` for groups of at least
-    /// `group::ORIGIN_FORM_RAYS` rays, the measured crossover). Default `auto`.
+    /// four rays at a time: bit-identical), `aligned` (the aligned ray-plane form as an exact
+    /// cull before `origin`), or `auto` (`origin` for groups of at least
+    /// `group::ORIGIN_FORM_RAYS` rays, the measured crossover; never `aligned`, measured slower
+    /// at every group size). Default `auto`.
     pub tri_test: TriTest,
     /// Groups whose fitted row or column planes hold their rays only to a sine above this are
     /// traced as random rays (ours; 0..=1, 1: never). Default 0.2 (BENCHMARKS.md § RTRPS:
@@ -190,6 +192,10 @@ pub enum TriTest {
     Moller,
     /// The common-origin form, a row's reproduced rays a vector at a time.
     Origin,
+    /// The aligned ray-plane form (Eqs. 7–8') as a cull before the common-origin form: per
+    /// triangle and hit row, the interval of the rays' grid `a_x` outside which the shared test
+    /// refuses them (`geom::aligned`).
+    Aligned,
 }
 
 /// [`Config::mode`].
@@ -330,7 +336,7 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     },
     OptionDoc {
         key: "tri_test",
-        doc: "reproduced rays' triangle test: auto, moller (one ray at a time) or origin (common origin, in lanes)",
+        doc: "reproduced rays' triangle test: auto, moller (one ray at a time), origin (common origin, in lanes) or aligned (aligned ray-plane cull, then origin)",
     },
     OptionDoc {
         key: "max_slack",
@@ -404,6 +410,19 @@ pub const PRESETS: &[Preset] = &[
         ],
     },
     Preset {
+        name: "any batch as 5x5 groups, aligned form, leaves of three, no ray check",
+        opts: &[
+            ("grid_side", "5"),
+            ("tri_test", "aligned"),
+            ("leaf_size", "3"),
+            ("ray_check", "false"),
+        ],
+    },
+    Preset {
+        name: "aligned form for every group",
+        opts: &[("tri_test", "aligned")],
+    },
+    Preset {
         name: "Möller form for every group",
         opts: &[("tri_test", "moller")],
     },
@@ -456,6 +475,11 @@ crate::counters! {
         /// Leaves skipped because the group's cone of directions provably misses their
         /// triangles (`edge_cull`).
         edge_culled,
+        /// Reproduced rays outside every span of the leaf's triangles on their row (the aligned
+        /// ray-plane form, `tri_test=aligned`): no triangle test.
+        span_culled,
+        /// Triangle spans computed (one per triangle and hit row of a leaf, aligned form).
+        spans,
         /// Ray/sphere tests of random rays.
         ray_sphere,
         /// Ray/triangle tests (shared test).
