@@ -10,6 +10,7 @@
 //! | `random.rs` | random rays: one ray at a time over the same hierarchy | §4.2 (Table 5's baseline) |
 //! | [`crate::accel::spheres`] | the sphere hierarchy, rigid update and refit | §2.1, §4.1 |
 //! | [`crate::geom::sphere_plane`] | fan fit, 2D line/circle test, wedge cull, sign rule, ray/sphere | §3.1.1–3.1.3 |
+//! | [`crate::geom::aligned`] | the aligned ray-plane form as an exact cull (spans of `a_x` per triangle and row) | §3.2.3, Eqs. 7–8' |
 //!
 //! **Groups** (§2.2, §4, item 8 of issue #14): a batch laid out as `OriginGrids { side }` (area-
 //! light shadow samples, hemisphere bounce grids) is cut into its side×side groups; a `Pinhole`
@@ -65,9 +66,14 @@
 //!   and the group's origin computed once per leaf visit, by the shared test's own operations,
 //!   so bit-identical), a row's reproduced rays four at a time; `auto` picks by
 //!   group size at the measured crossover (`group::ORIGIN_FORM_RAYS`, Fig. 10's rule). The
-//!   aligned ray-plane form (Eqs. 6–8) is not implemented: its arithmetic differs from the
-//!   shared test's, so the contract would allow it only as a cull before that test, which adds
-//!   work;
+//!   aligned ray-plane form (Eqs. 7–8', `tri_test=aligned`, [`crate::geom::aligned`]) is a
+//!   cull before the common-origin form, because its arithmetic is not the shared test's: per
+//!   leaf triangle and hit row, the interval of the rays' grid coordinate `a_x` outside which
+//!   the shared test provably refuses them (Eq. 8' with `a_y`'s spread over the row, the rays'
+//!   distance from the grid and the test's rounding bounded), then two comparisons per ray.
+//!   It removes 70% of the triangle tests on shadow grids and costs more than they did at
+//!   every group size measured, so `auto` never takes it (BENCHMARKS.md § RTRPS, "The aligned
+//!   ray-plane form");
 //! - the hit planes of a sorted fan found as one run (`ranges`, after §3.1.3's binary tree,
 //!   which tests every hit plane): where the sign rule holds the distances are monotone, so
 //!   both outer planes hitting means every plane between does, and otherwise the run's two
