@@ -500,7 +500,7 @@ fn measure(f: impl FnOnce()) -> usize {
 }
 
 /// Prepare allocates `24·T`; a first call `4·T·K + 84·R` (K tasks; `48·R` without box splits;
-/// `64·R` and `12·(⌊R_k/4⌋ + 7)` per task of `R_k` rays in the eye pass),
+/// `60·R` and `12·(⌊R_k/4⌋ + 7)` per task of `R_k` rays in the eye pass),
 /// plus, when its rays start from the kept levels (box splits: shared rays and handed-over
 /// bundles alike), those levels (`4·T` and `64·(4·T/(top_leaf + 1) + 1)`) and their build's
 /// sort keys (`8·T`, freed), whatever the scene's shape, the rays and the options; a second
@@ -558,14 +558,14 @@ fn memory_is_a_deterministic_linear_function() {
                 }
                 let [prepare, first, again, held] = m;
                 // Box splits (on unless `spatial=false`) keep 36 B more per ray: packed records.
-                // The eye pass (a camera's rays with `eye_ratio` 0) instead keeps 64 B per ray
+                // The eye pass (a camera's rays with `eye_ratio` 0) instead keeps 60 B per ray
                 // and 12 B per bucket (at most ⌊R_k / 4⌋ + 7 per task of R_k rays); it walks
                 // the kept levels too.
                 let eye = kv.contains(&("eye_ratio", "0"));
                 let (per_ray, buckets) = if eye {
                     let chunk = r.div_ceil(tasks);
                     let shares = (0..r).step_by(chunk).map(|s| chunk.min(r - s));
-                    (64, shares.map(|k| 12 * (k / 4 + 7)).sum())
+                    (60, shares.map(|k| 12 * (k / 4 + 7)).sum())
                 } else if kv.contains(&("spatial", "false")) {
                     (48, 0)
                 } else {

@@ -59,14 +59,20 @@ const MAX_BINS: usize = 1024;
 /// its best hit so far, raised to f32) and its task-local index, as `light.rs`'s segments.
 type EyePoint = LightPoint;
 
-/// The ray of an [`EyePoint`] (same slot): its direction and `tmin`, and its best hit so far
-/// (`t` starts at `tmax`): 32 bytes.
+/// A ray in its bucket: its [`EyePoint`], then what its tests read, its direction and its best
+/// `t` so far (starting at `tmax`). 32 bytes, aligned: one half cache line, so the sort writes
+/// one scattered line per ray.
 #[derive(Clone, Copy, Debug, Default)]
-#[repr(C)]
-pub(super) struct EyeRay {
+#[repr(C, align(32))]
+pub(super) struct EyeRec {
+    p: EyePoint,
     d: [f32; 3],
-    tmin: f32,
     t: f32,
+}
+
+/// The rest of a ray's best hit (same slot), written only when a test improves it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct EyeHit {
     prim: u32,
     u: f32,
     v: f32,
@@ -77,13 +83,12 @@ pub(super) struct EyeRay {
 pub(super) struct EyeScratch {
     /// Per ray of the share: its coordinates, depth and face, then its bucket.
     key: Vec<EyePoint>,
-    pts: Vec<EyePoint>,
-    rays: Vec<EyeRay>,
+    recs: Vec<EyeRec>,
+    hits: Vec<EyeHit>,
     buckets: Vec<Bucket>,
 }
 
-/// A bucket: its live rays are `pts[start..live]`, their depths at most `depth`; one cache
-/// line holds what a footprint's visit reads first.
+/// A bucket: its live rays are `recs[start..live]`, their depths at most `depth`.
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C)]
 struct Bucket {
@@ -94,9 +99,9 @@ struct Bucket {
 
 impl EyeScratch {
     pub(super) fn bytes(&self) -> usize {
-        16 * (self.key.capacity() + self.pts.capacity())
-            + 32 * self.rays.capacity()
-            + 12 * self.buckets.capacity()
+        16 * self.key.capacity()
+            + 32 * self.recs.capacity()
+            + 12 * (self.hits.capacity() + self.buckets.capacity())
     }
 }
 
@@ -149,6 +154,11 @@ impl Dacrt5d {
         // recursion from here, with the key buffer kept.
         let mut key = reuse(std::mem::take(&mut sc.key), n, true);
         let mut points = FacePoints::default();
+        // One `tmin` for every ray (bitwise) is kept once; else the tests read the batch's.
+        let tmin = rays.tmin[range.start];
+        let uniform = rays.tmin[range.clone()]
+            .iter()
+            .all(|t| t.to_bits() == tmin.to_bits());
         for i in range.clone() {
             let (d, tmax) = (rays.dir(i), rays.tmax[i]);
             let Some(r) = ray_view(d) else {
@@ -197,23 +207,24 @@ impl Dacrt5d {
             (b.start, at) = (at, at + b.live);
             b.live = b.start;
         }
-        let mut pts = reuse(std::mem::take(&mut sc.pts), n, true);
-        let mut eray = reuse(std::mem::take(&mut sc.rays), n, true);
-        pts.resize(n, EyePoint::default());
-        eray.resize(n, EyeRay::default());
+        let mut recs = reuse(std::mem::take(&mut sc.recs), n, true);
+        let mut hits = reuse(std::mem::take(&mut sc.hits), n, true);
+        recs.resize(n, EyeRec::default());
+        let miss = EyeHit {
+            prim: MISS,
+            u: 0.0,
+            v: 0.0,
+        };
+        hits.resize(n, miss);
         for (j, i) in range.clone().enumerate() {
             let k = key[j];
             let b = &mut bk[k.ray as usize];
             let at = b.live as usize;
             b.live += 1;
-            pts[at] = EyePoint { ray: j as u32, ..k };
-            eray[at] = EyeRay {
+            recs[at] = EyeRec {
+                p: EyePoint { ray: j as u32, ..k },
                 d: rays.dir(i).to_array(),
-                tmin: rays.tmin[i],
                 t: rays.tmax[i],
-                prim: MISS,
-                u: 0.0,
-                v: 0.0,
             };
         }
         // Each bucket's cursor now ends at the next's start: every ray is live.
@@ -221,8 +232,9 @@ impl Dacrt5d {
         let mut pass = Pass::<ANY> {
             tris,
             eye,
-            pts: &mut pts,
-            rays: &mut eray,
+            recs: &mut recs,
+            hits: &mut hits,
+            tmin: (uniform, tmin, &rays.tmin[range.clone()]),
             bk: &mut bk,
             occ: out.occ,
             cost,
@@ -318,15 +330,15 @@ impl Dacrt5d {
         }
         stream.drain(&mut pass);
         if !ANY {
-            for (p, r) in pts.iter().zip(&eray) {
-                if r.prim != MISS {
-                    let k = p.ray as usize;
-                    (out.t[k], out.prim[k], out.u[k], out.v[k]) = (r.t, r.prim, r.u, r.v);
+            for (r, h) in recs.iter().zip(&hits) {
+                if h.prim != MISS {
+                    let k = r.p.ray as usize;
+                    (out.t[k], out.prim[k], out.u[k], out.v[k]) = (r.t, h.prim, h.u, h.v);
                 }
             }
         }
         key.clear();
-        (sc.key, sc.pts, sc.rays) = (key, pts, eray);
+        (sc.key, sc.recs, sc.hits) = (key, recs, hits);
         sc.buckets = bk;
         ord.clear();
         *order = ord;
@@ -414,9 +426,7 @@ impl Stream {
             let (t, r) = self.ring[self.head % RING];
             let (_, soon) = self.ring[(self.head + AHEAD / 2) % RING];
             for row in soon.rows() {
-                let s = pass.bk[row].start as usize;
-                prefetch(pass.pts, s);
-                prefetch(pass.rays, s);
+                prefetch(pass.recs, pass.bk[row].start as usize);
             }
             pass.rect(t as usize, &r);
             self.head += 1;
@@ -446,8 +456,10 @@ const CANDIDATES: usize = 64;
 struct Pass<'p, 'c, const ANY: bool> {
     tris: &'p TriangleSoup,
     eye: Vec3,
-    pts: &'p mut [EyePoint],
-    rays: &'p mut [EyeRay],
+    recs: &'p mut [EyeRec],
+    hits: &'p mut [EyeHit],
+    /// Whether every ray has the one `tmin`, that `tmin`, and the share's (task-local).
+    tmin: (bool, f32, &'p [f32]),
     bk: &'p mut [Bucket],
     occ: &'p mut [bool],
     cost: Option<&'p mut CostMut<'c>>,
@@ -475,7 +487,7 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
             }
             let mut deepest = f32::NEG_INFINITY;
             for q in bk.start as usize..bk.live as usize {
-                let p = self.pts[q];
+                let p = self.recs[q].p;
                 self.st.eye_checks += 1;
                 deepest = deepest.max(p.depth);
                 if p.outside(fp) {
@@ -552,15 +564,18 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
         for (gi, group) in cand.chunks(4).enumerate() {
             // A short group repeats its first ray (its extra lanes are ignored).
             let slot = |l: usize| group.get(l).copied().unwrap_or(group[0]) as usize;
-            let rays = &self.rays;
-            let d = [0, 1, 2].map(|k| Vec4::from_fn(|l| rays[slot(l)].d[k]));
-            let tmin = Vec4::from_fn(|l| rays[slot(l)].tmin);
-            let tmax = Vec4::from_fn(|l| rays[slot(l)].t);
+            let recs = &self.recs;
+            let d = [0, 1, 2].map(|k| Vec4::from_fn(|l| recs[slot(l)].d[k]));
+            let tmin = match self.tmin {
+                (true, t, _) => Vec4::splat(t),
+                (false, _, all) => Vec4::from_fn(|l| all[recs[slot(l)].p.ray as usize]),
+            };
+            let tmax = Vec4::from_fn(|l| recs[slot(l)].t);
             let h = tri.intersect_lanes_each::<Vec4>(d, tmin, tmax);
             let mut m = h.mask & ((1u32 << group.len()) - 1);
             if let Some(c) = self.cost.as_deref_mut() {
                 for &q in group {
-                    c.add(self.pts[q as usize].ray as usize, 0, 1, 1);
+                    c.add(self.recs[q as usize].p.ray as usize, 0, 1, 1);
                 }
             }
             while m != 0 {
@@ -572,27 +587,30 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
                     dirty[nd] = b;
                     nd += 1;
                 }
-                let p = &mut self.pts[q];
+                let r = &mut self.recs[q];
                 if ANY {
-                    self.occ[p.ray as usize] = true;
-                    p.depth = f32::NEG_INFINITY;
+                    self.occ[r.p.ray as usize] = true;
+                    r.p.depth = f32::NEG_INFINITY;
                     continue;
                 }
-                let r = &mut self.rays[q];
                 let ht = h.t.lane(l);
-                if closer(ht, t as u32, r.t, r.prim) {
-                    (r.t, r.prim, r.u, r.v) = (ht, t as u32, h.u.lane(l), h.v.lane(l));
+                let best = &mut self.hits[q];
+                if closer(ht, t as u32, r.t, best.prim) {
+                    r.t = ht;
+                    (best.prim, best.u, best.v) = (t as u32, h.u.lane(l), h.v.lane(l));
                     // `|d_k|` is the largest component: the face axis's.
                     let x = ht as f64 * Vec3::from_array(r.d).abs().max_element() as f64;
-                    p.depth = next_up(x as f32, x);
+                    r.p.depth = next_up(x as f32, x);
                 }
             }
         }
         // Their depth bounds lowered now, so the kept levels' walk sees them (`hidden`).
         for &b in &dirty[..nd] {
             let k = self.bk[b as usize];
-            let pts = &self.pts[k.start as usize..k.live as usize];
-            self.bk[b as usize].depth = pts.iter().fold(f32::NEG_INFINITY, |m, p| m.max(p.depth));
+            let recs = &self.recs[k.start as usize..k.live as usize];
+            self.bk[b as usize].depth = recs
+                .iter()
+                .fold(f32::NEG_INFINITY, |m, r| m.max(r.p.depth));
         }
     }
 }

@@ -121,7 +121,7 @@
 //! build's `8·T` of sort keys (`12·T` of items with `top_split=middle`). So `a = 24 + 4K`
 //! bytes per triangle (`+ 4` and a fraction with kept levels), `b = 84` per ray (48 without
 //! box splits). A task that takes the eye pass allocates, besides its `4·T` (the triangle
-//! order), `64·R_k + 12·(⌊R_k / eye_bucket⌋ + 7)` (16 bytes per ray in ray order, 16 + 32 per
+//! order), `60·R_k + 12·(⌊R_k / eye_bucket⌋ + 7)` (16 bytes per ray in ray order, 32 + 12 per
 //! ray in its bucket, 12 per bucket) and no records; it makes the kept levels as box splits do. `tests/dacrt5d.rs`
 //! checks both with a counting allocator.
 
