@@ -164,8 +164,8 @@ fn rays_from(s: &Scene, eye: Vec3) -> RayBatch {
 }
 
 /// The eye pass (`eye.rs`: a task's rays all from one point, traced in its frame): every
-/// preset equals `naive` on rays through the mesh's vertices and edge midpoints from eyes
-/// outside it, on one of its vertices (triangles around the eye, tested against every ray)
+/// preset equals `naive` on rays through the mesh's vertices and edge midpoints (with one
+/// `tmin` for all, and one per ray) from eyes outside it, on one of its vertices (triangles around the eye, tested against every ray)
 /// and inside it, at scales 1e-3 to 1e3 far from the origin; the counters show when it runs:
 /// not with `eye=false`, not from inside the scene's box unless `eye_inside`, not for fewer
 /// rays than `eye_ratio` per triangle; from outside, the kept levels' walk skips hidden nodes.
@@ -194,6 +194,13 @@ fn eye_pass_from_one_point() {
             let rays = rays_from(&s, eye);
             let n = rays.len() as u64;
             check(&s, &rays);
+            // A `tmin` per ray (the pass then reads each ray's): before, at and past the points
+            // the rays aim at, and zero.
+            let mut varied = rays.clone();
+            for i in 0..varied.len() {
+                varied.tmin[i] = [0.0, 0.5, 1.0, 1.0f32.next_up(), 2.0][i % 5];
+            }
+            check(&s, &varied);
             let on = stats(&s, &rays, &[("eye_ratio", "0"), ("eye_inside", "true")]);
             assert_eq!(on.work.get("eye_rays"), n, "{:?}", on.work);
             assert!(
