@@ -23,12 +23,25 @@
 //!
 //! **Radii are exact bounds of what the shared triangle test can report.** A hit of
 //! `geom::intersect_triangle` lies in the triangle's world bounding box (the box gate puts it
-//! there), not necessarily on the triangle; under any rotation, the world box of a triangle whose
-//! corners lie within `ρ` of a point `c_t` lies within `√3·ρ` of `c_t` (the box of a ball). So a
-//! leaf's radius is `max_t |c_t − C| + √3·ρ_t` over its triangles (local frame), and a world
-//! radius is the local one times `σ`, a bound on the transform's largest stretch (Gershgorin on
-//! `AᵀA`; 1 for rigid motions). Parents bound children: `R = max |c_i − C| + r_i`. Tracers add an
-//! absolute margin `SLACK · scale` for the rounding of the transforms (see [`SLACK`]).
+//! there), not necessarily on the triangle. Two radii bound it (ours; the paper is silent):
+//! - **under any rotation**: the world box of a triangle whose corners lie within `ρ` of a point
+//!   `c_t` lies within `√3·ρ` of `c_t` (the box of a ball), so a leaf's radius is
+//!   `max_t |c_t − C| + √3·ρ_t` over its triangles (local frame), and a world radius is the
+//!   local one times `σ`, a bound on the transform's largest stretch (Gershgorin on `AᵀA`; 1 for
+//!   rigid motions);
+//! - **for the transform at the last fit** (tight): the distance from the leaf's world centre to
+//!   the farthest corner of its triangles' world boxes (the scene's own f32 corners), times
+//!   `max(σ⁻¹, 1/σ)` in the local frame (random rays test local spheres with local rays, ray
+//!   groups world spheres of radius `σ·r`). At most the first, and up to √3 times smaller: on
+//!   the bunny's shadow grids the tight radii cut the trace time by 0.71× (BENCHMARKS.md
+//!   § RTRPS, "Tight radii").
+//!
+//! A part's radii are the tight ones (the smaller of both, per leaf) after the build and after
+//! every deformation's refit, and the any-rotation ones from its first rigid motion to a new
+//! transform on: that motion refits its leaves once (linear in its triangles, counted in
+//! `leaves_refit`), and every later motion is O(1) again. Parents bound children:
+//! `R = max |c_i − C| + r_i`. Tracers add an absolute margin `SLACK · scale` for the rounding of
+//! the transforms (see [`SLACK`]).
 //!
 //! **Part tree** (ours; the paper's scene sphere holds its few parts directly): above the parts,
 //! a binary tree of world-frame spheres over the parts, split at the median of their world
@@ -123,6 +136,8 @@ pub struct Part {
     pub sigma_inv: f32,
     /// Largest `|local centre|∞ + local radius` over the part's spheres (margin scale).
     pub extent: f32,
+    /// The part's radii are tight for its transform (not moved since the fit; the module doc).
+    pub tight: bool,
     /// World sphere centre.
     pub world_centre: Vec3,
     /// World sphere radius.
@@ -145,7 +160,7 @@ pub struct SphereTree {
     pub inner_kids: Vec<[u32; 2]>,
     /// Leaf centres (local).
     pub leaf_c: Vec<Vec3>,
-    /// Leaf radii (local).
+    /// Leaf radii (local; tight or under any rotation, see the module doc).
     pub leaf_r: Vec<f32>,
     /// Triangles of each leaf: range of [`SphereTree::tris`].
     pub leaf_tris: Vec<[u32; 2]>,
@@ -311,12 +326,12 @@ impl SphereTree {
                 sigma: 1.0,
                 sigma_inv: 1.0,
                 extent: 0.0,
+                tight: false,
                 world_centre: Vec3::ZERO,
                 world_radius: 0.0,
             });
             let p = t.parts.len() - 1;
-            t.refit_part(p);
-            t.place_part(p, mesh.transform);
+            t.fit_part(scene, p, mesh.transform);
         }
         t.place_root();
         // Pushed one by one: give back the growth slack (bytes() reports capacities).
@@ -381,14 +396,21 @@ impl SphereTree {
             if let Some(p) = part_of(&self.parts, m) {
                 self.refit_leaves(scene, p);
                 u.refit_leaves += self.parts[p].leaves.len();
-                self.refit_part(p);
-                self.place_part(p, scene.meshes()[m].transform);
+                self.fit_part(scene, p, scene.meshes()[m].transform);
                 u.moved += 1;
             }
         }
         for &m in moved {
             if let Some(p) = part_of(&self.parts, m) {
-                self.place_part(p, scene.meshes()[m].transform);
+                let xf = scene.meshes()[m].transform;
+                if self.parts[p].tight && xf != self.parts[p].xf {
+                    // Its radii were tight for the old transform: the any-rotation ones, once.
+                    self.refit_leaves(scene, p);
+                    u.refit_leaves += self.parts[p].leaves.len();
+                    self.refit_part(p);
+                    self.parts[p].tight = false;
+                }
+                self.place_part(p, xf);
                 u.moved += 1;
             }
         }
@@ -411,6 +433,47 @@ impl SphereTree {
             self.leaf_c[l as usize] = c;
             self.leaf_r[l as usize] = r;
         }
+    }
+
+    /// Part `p`'s spheres for transform `xf`, its leaves' centres and any-rotation radii set:
+    /// the tight leaf radii from the scene's world boxes (where smaller), the inner and part
+    /// spheres from them, and the world sphere.
+    fn fit_part(&mut self, scene: &Scene, p: usize, xf: Affine3A) {
+        // The stretch bounds first (the world sphere is placed again below).
+        self.place_part(p, xf);
+        let part = &self.parts[p];
+        let (l0, l1) = (part.leaves.start as usize, part.leaves.end as usize);
+        // Tight leaf radii: world centre to the farthest world box corner of each triangle
+        // (f64), into the local frame by `max(σ⁻¹, 1/σ)` (infinite for a singular transform:
+        // the any-rotation radius stays).
+        let (sigma, sigma_inv) = (part.sigma as f64, part.sigma_inv as f64);
+        let back = sigma_inv.max(1.0 / sigma) * (1.0 + 1e-6);
+        let soup = scene.triangles();
+        let a = DMat3::from_cols(
+            xf.matrix3.x_axis.as_dvec3(),
+            xf.matrix3.y_axis.as_dvec3(),
+            xf.matrix3.z_axis.as_dvec3(),
+        );
+        let t = xf.translation.as_dvec3();
+        for l in l0..l1 {
+            let cw = a * self.leaf_c[l].as_dvec3() + t;
+            let [s, e] = self.leaf_tris[l];
+            let far = self.tris[s as usize..e as usize]
+                .iter()
+                .map(|&id| {
+                    let b = soup.bounds(id as usize);
+                    let (lo, hi) = (b.min.as_dvec3() - cw, b.max.as_dvec3() - cw);
+                    lo.abs().max(hi.abs()).length()
+                })
+                .fold(0.0, f64::max);
+            let tight = round_up(far * back);
+            if tight.is_finite() && tight < self.leaf_r[l] {
+                self.leaf_r[l] = tight;
+            }
+        }
+        self.refit_part(p);
+        self.parts[p].tight = true;
+        self.place_part(p, xf);
     }
 
     /// Recomputes part `p`'s inner spheres and part sphere from its leaves (local frame).
