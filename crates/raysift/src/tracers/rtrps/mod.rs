@@ -40,8 +40,9 @@
 //! **Ours, where the paper is silent** (measured in BENCHMARKS.md § RTRPS):
 //! - the leaves (Morton runs of `leaf_size` triangles), inner spheres (`cluster` leaves, in a
 //!   binary tree over the part's leaves by default, `levels`), leaf
-//!   centre rule (`centre`), and the √3 radius that makes spheres bound what the box-gated
-//!   triangle test can report (see `accel::spheres`);
+//!   centre rule (`centre`), and the radii that make spheres bound what the box-gated
+//!   triangle test can report: tight for the part's transform at the last fit, `√3·ρ` under
+//!   any rotation from its first rigid motion on (see `accel::spheres`);
 //! - the depth cull (`depth_cull`): a hit row and a hit column meet in the whole line through
 //!   the origin, so the planes alone keep every sphere on a ray's backward extension (for
 //!   shadow grids from a surface, the body beneath it); when every ray of a group has
