@@ -405,6 +405,7 @@ fn table6(spec: &str, frames: u32) {
             "rtrps",
             opts(&[("near_first", "false")]),
         ),
+        ("rtrps, retighten", "rtrps", opts(&[("retighten", "true")])),
         ("rtrps, no hit cut", "rtrps", opts(&[("hit_cut", "false")])),
         (
             "rtrps, no hit cut, hierarchy's order",

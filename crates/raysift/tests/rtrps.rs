@@ -598,7 +598,11 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
     }
     // The hierarchy bounds the moved triangles, and a rigid frame rewrites only one part.
     let mut scene = scene;
-    let mut t = Rtrps::new(Default::default()).unwrap();
+    let mut t = Rtrps::new(raysift::tracers::rtrps::Config {
+        retighten: false,
+        ..Default::default()
+    })
+    .unwrap();
     t.prepare(&scene).unwrap();
     for f in 1..5 {
         scene
@@ -611,8 +615,8 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
             )
             .unwrap();
         let st = t.prepare(&scene).unwrap();
-        // The first motion trades the part's tight radii for the any-rotation ones (a refit
-        // of its leaves, once); later motions touch no leaf.
+        // Without `retighten`, the first motion trades the part's tight radii for the
+        // any-rotation ones (a refit of its leaves, once); later motions touch no leaf.
         let refit = if f == 1 {
             t.spheres().parts[1].leaves.len() as u64
         } else {
@@ -628,6 +632,22 @@ fn rigid_motion_of_one_part_of_a_multi_mesh_scene() {
         );
         assert!(!t.spheres().parts[1].tight && t.spheres().parts[0].tight);
         t.spheres().validate(&scene).unwrap();
+    }
+    // `retighten` (the default): every motion refits the moved part to tight radii for its
+    // new transform.
+    let mut tt = Rtrps::new(Default::default()).unwrap();
+    tt.prepare(&scene).unwrap();
+    for f in 5..8 {
+        scene
+            .set_transform(1, Affine3A::from_rotation_x(f as f32 * 0.7))
+            .unwrap();
+        let st = tt.prepare(&scene).unwrap();
+        assert_eq!(
+            st.built.get("leaves_refit"),
+            tt.spheres().parts[1].leaves.len() as u64
+        );
+        assert!(tt.spheres().parts[1].tight);
+        tt.spheres().validate(&scene).unwrap();
     }
     let pos: Vec<Vec3> = scene.meshes()[0]
         .positions

@@ -8,7 +8,8 @@
 //! the scene sphere: O(1) per moved part, no triangle and no leaf touched (Algorithm 1's "affine
 //! transformation of each sphere", done lazily: the tracer brings each ray group's frame into the
 //! part's frame, 18 flops per sphere centre as in §3.1.1, and random rays are brought into it
-//! once per ray and part). A deformation (`deformed`) re-centres that part's leaf spheres from
+//! once per ray and part). With [`BuildConfig::retighten`] (`rtrps`'s default) the motion also
+//! makes the part's radii tight for its new transform (below): linear in its triangles. A deformation (`deformed`) re-centres that part's leaf spheres from
 //! its new local positions (same leaves, same triangles: linear in its triangles, no rebuild),
 //! then its inner spheres and part sphere (linear in its leaves).
 //!
@@ -39,7 +40,9 @@
 //! A part's radii are the tight ones (the smaller of both, per leaf) after the build and after
 //! every deformation's refit, and the any-rotation ones from its first rigid motion to a new
 //! transform on: that motion refits its leaves once (linear in its triangles, counted in
-//! `leaves_refit`), and every later motion is O(1) again. Parents bound children:
+//! `leaves_refit`), and every later motion is O(1) again; with `retighten`, every rigid motion
+//! to a new transform makes them tight for it (linear in the part's triangles: 1.5 ms more
+//! update for 85 ms less trace on the bunny's `spin-parts` frames, BENCHMARKS.md § RTRPS). Parents bound children:
 //! `R = max |c_i − C| + r_i`. Tracers add an absolute margin `SLACK · scale` for the rounding of
 //! the transforms (see [`SLACK`]).
 //!
@@ -109,6 +112,9 @@ pub struct BuildConfig {
     pub levels: Levels,
     /// Leaf centre rule.
     pub centre: Centre,
+    /// A rigid motion to a new transform makes the part's radii tight for it (linear in its
+    /// triangles) instead of bringing in the any-rotation ones once (see the module doc).
+    pub retighten: bool,
 }
 
 /// One part: a mesh's spheres and its transform.
@@ -403,14 +409,23 @@ impl SphereTree {
         for &m in moved {
             if let Some(p) = part_of(&self.parts, m) {
                 let xf = scene.meshes()[m].transform;
-                if self.parts[p].tight && xf != self.parts[p].xf {
-                    // Its radii were tight for the old transform: the any-rotation ones, once.
+                let retighten = self.cfg.is_some_and(|c| c.retighten);
+                if retighten && xf != self.parts[p].xf {
+                    // Tight for the new transform (leaves re-sized, centres unchanged).
                     self.refit_leaves(scene, p);
                     u.refit_leaves += self.parts[p].leaves.len();
-                    self.refit_part(p);
-                    self.parts[p].tight = false;
+                    self.fit_part(scene, p, xf);
+                } else {
+                    if self.parts[p].tight && xf != self.parts[p].xf {
+                        // Its radii were tight for the old transform: the any-rotation ones,
+                        // once.
+                        self.refit_leaves(scene, p);
+                        u.refit_leaves += self.parts[p].leaves.len();
+                        self.refit_part(p);
+                        self.parts[p].tight = false;
+                    }
+                    self.place_part(p, xf);
                 }
-                self.place_part(p, xf);
                 u.moved += 1;
             }
         }

@@ -60,7 +60,10 @@
 //!   between a ray and its plane; hemisphere grids) are traced as random rays: every plane
 //!   then meets every sphere near the origin (measured in BENCHMARKS.md § RTRPS);
 //! - rigid update by frames, not by moving spheres: a part's spheres stay in its local frame, and
-//!   a group's frame is brought into each part's frame (one 3×3 product per part and group);
+//!   a group's frame is brought into each part's frame (one 3×3 product per part and group); by
+//!   default (`retighten`) a moved part's radii are then made tight for its new transform,
+//!   linear in its triangles (without it, O(1) per moved part, with radii that hold under any
+//!   rotation);
 //! - §3.2's triangle forms (`tri_test`): reproduced rays go through the shared test one at a
 //!   time (Table 2's "Möller" row) or through its common-origin form
 //!   ([`TriFromOrigin`](crate::geom::TriFromOrigin): the parts that depend only on the triangle
@@ -181,6 +184,11 @@ pub struct Config {
     /// traced as random rays (ours; 0..=1, 1: never). Default 0.2 (BENCHMARKS.md § RTRPS:
     /// shadow grids and camera tiles stay far below it, hemisphere grids are above).
     pub max_slack: f32,
+    /// Every rigid motion makes the moved part's sphere radii tight for its new transform
+    /// (linear in its triangles) instead of keeping radii that hold under any rotation (O(1)
+    /// per motion; `accel::spheres`). Default true (BENCHMARKS.md § RTRPS, "Tight radii": on
+    /// the bunny's `spin-parts` frames it adds 1.5 ms of update and saves 85 ms of trace).
+    pub retighten: bool,
     /// Tile side for pinhole images (1..=64). Default 16.
     pub packet: usize,
     /// When > 0 (1..=64): cut every batch into consecutive groups of `grid_side²` rays whatever
@@ -236,6 +244,7 @@ impl Default for Config {
             edge_cull: true,
             tri_test: TriTest::Auto,
             max_slack: 0.2,
+            retighten: true,
             packet: 16,
             grid_side: 0,
         }
@@ -275,6 +284,7 @@ impl Config {
             cluster: self.cluster,
             centre: self.centre,
             levels: self.levels,
+            retighten: self.retighten,
         }
     }
 }
@@ -344,6 +354,10 @@ pub const OPTION_DOCS: &[OptionDoc] = &[
     OptionDoc {
         key: "tri_test",
         doc: "reproduced rays' triangle test: auto, moller (one ray at a time), origin (common origin, in lanes) or aligned (aligned ray-plane cull, then origin)",
+    },
+    OptionDoc {
+        key: "retighten",
+        doc: "rigid motions make the moved part's radii tight for its new transform (linear in its triangles)",
     },
     OptionDoc {
         key: "max_slack",
@@ -424,6 +438,10 @@ pub const PRESETS: &[Preset] = &[
             ("leaf_size", "3"),
             ("ray_check", "false"),
         ],
+    },
+    Preset {
+        name: "any-rotation radii after a rigid motion",
+        opts: &[("retighten", "false")],
     },
     Preset {
         name: "aligned form for every group",
