@@ -258,11 +258,7 @@ fn table5(spec: &str, origins: usize, bounce: bool) {
             "rtrps",
             opts(&[("tri_test", "aligned"), ("ray_check", "false")]),
         ),
-        (
-            "rtrps aligned",
-            "rtrps",
-            opts(&[("tri_test", "aligned")]),
-        ),
+        ("rtrps aligned", "rtrps", opts(&[("tri_test", "aligned")])),
         (
             "rtrps leaves of 4, common origin",
             "rtrps",
@@ -518,11 +514,7 @@ fn crossover(spec: &str, origins: usize) {
             "rtrps",
             opts(&[("tri_test", "origin")]),
         ),
-        (
-            "rtrps aligned",
-            "rtrps",
-            opts(&[("tri_test", "aligned")]),
-        ),
+        ("rtrps aligned", "rtrps", opts(&[("tri_test", "aligned")])),
     ];
     let mut live: Vec<_> = contenders
         .iter()

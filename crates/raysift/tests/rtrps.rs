@@ -247,7 +247,10 @@ fn aligned_form_only_removes_tests() {
             o.get("tri_tests"),
             "side {side}: {a:?} vs {o:?}"
         );
-        assert!(6 * a.get("tri_tests") < 5 * o.get("tri_tests"), "{a:?} vs {o:?}");
+        assert!(
+            6 * a.get("tri_tests") < 5 * o.get("tri_tests"),
+            "{a:?} vs {o:?}"
+        );
         let any = |opts: &[(&str, &str)]| {
             let opts: Vec<(String, String)> = opts
                 .iter()

@@ -608,9 +608,8 @@ impl<const ANY: bool> Pass<'_, '_, ANY> {
         for &b in &dirty[..nd] {
             let k = self.bk[b as usize];
             let recs = &self.recs[k.start as usize..k.live as usize];
-            self.bk[b as usize].depth = recs
-                .iter()
-                .fold(f32::NEG_INFINITY, |m, r| m.max(r.p.depth));
+            self.bk[b as usize].depth =
+                recs.iter().fold(f32::NEG_INFINITY, |m, r| m.max(r.p.depth));
         }
     }
 }

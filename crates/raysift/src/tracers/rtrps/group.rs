@@ -6,9 +6,9 @@
 
 use super::{random, Config, Counts, TriTest};
 use crate::accel::spheres::{Part, SphereTree, MAX_DEPTH, NO_KID, SLACK};
+use crate::geom::aligned::{AlignedFit, AlignedGroup, AlignedRow, AlignedTri};
 use crate::geom::lanes::{self, Width};
 use crate::geom::sphere_plane::{fan_bound, wedge_misses, PlaneFan, MAX_FAN};
-use crate::geom::aligned::{AlignedFit, AlignedGroup, AlignedRow, AlignedTri};
 use crate::geom::{RayCone, TriFromOrigin};
 use crate::rays::{RayBatch, MISS};
 use crate::scene::TriangleSoup;
