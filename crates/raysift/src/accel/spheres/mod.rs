@@ -9,9 +9,10 @@
 //! transformation of each sphere", done lazily: the tracer brings each ray group's frame into the
 //! part's frame, 18 flops per sphere centre as in §3.1.1, and random rays are brought into it
 //! once per ray and part). With [`BuildConfig::retighten`] (`rtrps`'s default) the motion also
-//! makes the part's radii tight for its new transform (below): linear in its triangles. A deformation (`deformed`) re-centres that part's leaf spheres from
-//! its new local positions (same leaves, same triangles: linear in its triangles, no rebuild),
-//! then its inner spheres and part sphere (linear in its leaves).
+//! makes the part's radii tight for its new transform (below): linear in its triangles. A
+//! deformation (`deformed`) re-centres that part's leaf spheres from its new local positions
+//! (same leaves, same triangles: linear in its triangles, no rebuild), then its inner spheres and
+//! part sphere (linear in its leaves).
 //!
 //! **Leaves** (the paper is silent on how; ours): a mesh's triangles in Morton order of their
 //! local centroids (10 bits per axis), cut into runs of `leaf_size`; inner spheres are runs of
@@ -33,18 +34,18 @@
 //! - **for the transform at the last fit** (tight): the distance from the leaf's world centre to
 //!   the farthest corner of its triangles' world boxes (the scene's own f32 corners), times
 //!   `max(σ⁻¹, 1/σ)` in the local frame (random rays test local spheres with local rays, ray
-//!   groups world spheres of radius `σ·r`). At most the first, and up to √3 times smaller: they halve
-//!   the triangle tests of the bunny's shadow grids and take 0.74–0.87 of their trace time
-//!   against the `bvh` (BENCHMARKS.md § RTRPS, "Tight radii").
+//!   groups world spheres of radius `σ·r`). At most the first, and up to √3 times smaller: they
+//!   halve the triangle tests of the bunny's shadow grids and take 0.74–0.87 of their trace
+//!   time against the `bvh` (BENCHMARKS.md § RTRPS, "Tight radii").
 //!
 //! A part's radii are the tight ones (the smaller of both, per leaf) after the build and after
 //! every deformation's refit, and the any-rotation ones from its first rigid motion to a new
 //! transform on: that motion refits its leaves once (linear in its triangles, counted in
 //! `leaves_refit`), and every later motion is O(1) again; with `retighten`, every rigid motion
 //! to a new transform makes them tight for it (linear in the part's triangles: 1.5 ms more
-//! update for 85 ms less trace on the bunny's `spin-parts` frames, BENCHMARKS.md § RTRPS). Parents bound children:
-//! `R = max |c_i − C| + r_i`. Tracers add an absolute margin `SLACK · scale` for the rounding of
-//! the transforms (see [`SLACK`]).
+//! update for 85 ms less trace on the bunny's `spin-parts` frames, BENCHMARKS.md § RTRPS).
+//! Parents bound children: `R = max |c_i − C| + r_i`. Tracers add an absolute margin
+//! `SLACK · scale` for the rounding of the transforms (see [`SLACK`]).
 //!
 //! **Part tree** (ours; the paper's scene sphere holds its few parts directly): above the parts,
 //! a binary tree of world-frame spheres over the parts, split at the median of their world
