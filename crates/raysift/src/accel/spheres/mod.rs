@@ -33,8 +33,8 @@
 //!   rigid motions);
 //! - **for the transform at the last fit** (tight): the distance from the leaf's world centre to
 //!   the farthest corner of its triangles' world boxes (the scene's own f32 corners), times
-//!   `max(σ⁻¹, 1/σ)` in the local frame (random rays test local spheres with local rays, ray
-//!   groups world spheres of radius `σ·r`). At most the first, and up to √3 times smaller: they
+//!   `max(σ⁻¹, 1/σ)` in the local frame (at least the `1/σ` that ray groups' world spheres of
+//!   radius `σ·r` need; random rays widen local radii by `σ·σ⁻¹` themselves). At most the first, and up to √3 times smaller: they
 //!   halve the triangle tests of the bunny's shadow grids and take 0.74–0.87 of their trace
 //!   time against the `bvh` (BENCHMARKS.md § RTRPS, "Tight radii").
 //!
