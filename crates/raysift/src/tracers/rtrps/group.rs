@@ -778,9 +778,9 @@ pub fn trace(
     let o64 = o.as_dvec3();
     let nr = g.rows * cols;
     s.load(rays, g, matches!(out, Out::Hits(_)), cfg.box_check);
-    // `auto` never takes the aligned form: it removes 70% of the triangle tests and costs more
-    // than they did at every group size measured (BENCHMARKS.md § RTRPS, "The aligned
-    // ray-plane form").
+    // `auto` never takes the aligned form: it removes half or more of the triangle tests and
+    // costs more than they did at every group size measured (BENCHMARKS.md § RTRPS, "The
+    // aligned ray-plane form").
     let aligned = cfg.tri_test == TriTest::Aligned;
     s.align = None;
     if aligned {

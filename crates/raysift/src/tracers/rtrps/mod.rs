@@ -75,8 +75,8 @@
 //!   leaf triangle and hit row, the interval of the rays' grid coordinate `a_x` outside which
 //!   the shared test provably refuses them (Eq. 8' with `a_y`'s spread over the row, the rays'
 //!   distance from the grid and the test's rounding bounded), then two comparisons per ray.
-//!   It removes 70% of the triangle tests on shadow grids and costs more than they did at
-//!   every group size measured, so `auto` never takes it (BENCHMARKS.md § RTRPS, "The aligned
+//!   It removes half or more of the triangle tests on shadow grids and costs more than they
+//!   did at every group size measured, so `auto` never takes it (BENCHMARKS.md § RTRPS, "The aligned
 //!   ray-plane form");
 //! - the hit planes of a sorted fan found as one run (`ranges`, after §3.1.3's binary tree,
 //!   which tests every hit plane): where the sign rule holds the distances are monotone, so
